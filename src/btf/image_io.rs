@@ -1,0 +1,200 @@
+//! Reading and writing single images as linear RGB `f16`.
+//!
+//! 8-bit and 16-bit PNG/JPEG are sRGB-decoded; EXR is linear and its R, G, B channels are
+//! looked up by name (a luminance-only `Y` image is read as grey).
+
+use crate::btf::Crop;
+use crate::{Error, Result};
+use half::f16;
+use std::path::Path;
+
+/// A linear RGB image, row-major, RGB interleaved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<f16>,
+}
+
+/// File types the loaders recognise by extension (case-insensitive).
+pub fn is_image_path(path: &Path) -> bool {
+    matches!(extension(path).as_deref(), Some("png" | "jpg" | "jpeg" | "exr"))
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase())
+}
+
+/// Reads an image as linear RGB and applies `crop`.
+pub fn read_rgb(path: &Path, crop: Option<Crop>) -> Result<RgbImage> {
+    let image = match extension(path).as_deref() {
+        Some("exr") => read_exr(path)?,
+        Some("png" | "jpg" | "jpeg") => read_8_or_16_bit(path)?,
+        _ => return Err(Error::format(path, "not a PNG, JPEG or EXR file")),
+    };
+    match crop {
+        Some(c) => crop_image(&image, c).map_err(|m| Error::format(path, m)),
+        None => Ok(image),
+    }
+}
+
+fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let decoded = reader
+        .decode()
+        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+    let (width, height) = (decoded.width() as usize, decoded.height() as usize);
+    let data = if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
+        decoded
+            .to_rgb16()
+            .into_raw()
+            .into_iter()
+            .map(|v| f16::from_f32(srgb_to_linear(v as f32 / 65535.0)))
+            .collect()
+    } else {
+        let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
+        decoded.to_rgb8().into_raw().into_iter().map(|v| lut[v as usize]).collect()
+    };
+    Ok(RgbImage { width, height, data })
+}
+
+fn read_exr(path: &Path) -> Result<RgbImage> {
+    use exr::prelude::{read, MetaData, ReadChannels, ReadLayers, ReadSpecificChannel, Vec2};
+    let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
+    let meta = MetaData::read_from_file(path, false).map_err(bad)?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| Error::format(path, "EXR has no layers"))?;
+    let has = |name: &str| header.channels.list.iter().any(|c| c.name == exr::prelude::Text::from(name));
+    let rgb = has("R") && has("G") && has("B");
+    if !rgb && !has("Y") {
+        return Err(Error::format(path, "EXR has neither R, G, B nor Y channels"));
+    }
+    let (width, height) = (header.layer_size.width(), header.layer_size.height());
+    type Pixels = (usize, Vec<f16>);
+    let create = |size: Vec2<usize>| -> Pixels { (size.width(), vec![f16::ZERO; size.area() * 3]) };
+    fn put((w, px): &mut Pixels, pos: Vec2<usize>, v: [f16; 3]) {
+        let o = (pos.y() * *w + pos.x()) * 3;
+        px[o..o + 3].copy_from_slice(&v);
+    }
+    let (_, data) = if rgb {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .specific_channels()
+            .required("R")
+            .required("G")
+            .required("B")
+            .collect_pixels(
+                |size, _| create(size),
+                move |px, pos, (r, g, b): (f16, f16, f16)| put(px, pos, [r, g, b]),
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_file(path)
+            .map_err(bad)?
+            .layer_data
+            .channel_data
+            .pixels
+    } else {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .specific_channels()
+            .required("Y")
+            .collect_pixels(|size, _| create(size), move |px, pos, (y,): (f16,)| put(px, pos, [y, y, y]))
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_file(path)
+            .map_err(bad)?
+            .layer_data
+            .channel_data
+            .pixels
+    };
+    if data.iter().any(|v| !v.is_finite()) {
+        return Err(Error::format(path, "EXR contains NaN or infinite values"));
+    }
+    Ok(RgbImage { width, height, data })
+}
+
+/// Cuts `crop` out of `image`; the message says how the crop misses the image.
+pub fn crop_image(image: &RgbImage, crop: Crop) -> Result<RgbImage, String> {
+    let (x, y, w, h) = (crop.x as usize, crop.y as usize, crop.width as usize, crop.height as usize);
+    if x + w > image.width || y + h > image.height {
+        return Err(format!(
+            "crop {x},{y},{w},{h} does not fit in the {}x{} image",
+            image.width, image.height
+        ));
+    }
+    let mut data = Vec::with_capacity(w * h * 3);
+    for row in y..y + h {
+        let start = (row * image.width + x) * 3;
+        data.extend_from_slice(&image.data[start..start + w * 3]);
+    }
+    Ok(RgbImage { width: w, height: h, data })
+}
+
+/// Writes linear RGB as a half-float EXR (lossless ZIP): exact for `f16` data.
+pub fn write_exr(path: &Path, width: usize, height: usize, data: &[f16]) -> Result<()> {
+    use exr::prelude::{Encoding, Image, SpecificChannels, Vec2, WritableImage};
+    let channels = SpecificChannels::rgb(|Vec2(x, y)| {
+        let o = (y * width + x) * 3;
+        (data[o], data[o + 1], data[o + 2])
+    });
+    Image::from_encoded_channels((width, height), Encoding::SMALL_LOSSLESS, channels)
+        .write()
+        .non_parallel()
+        .to_file(path)
+        .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))
+}
+
+/// Writes linear RGB as an 8-bit sRGB PNG (values clamped to [0, 1]).
+pub fn write_png(path: &Path, width: usize, height: usize, data: &[f16]) -> Result<()> {
+    let bytes: Vec<u8> = data.iter().map(|v| linear_to_srgb8(v.to_f32())).collect();
+    image::save_buffer_with_format(path, &bytes, width as u32, height as u32, image::ExtendedColorType::Rgb8, image::ImageFormat::Png)
+        .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+}
+
+/// The sRGB transfer function's inverse.
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear to 8-bit sRGB, clamped and rounded.
+pub fn linear_to_srgb8(v: f32) -> u8 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    let s = if v <= 0.003_130_8 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0).round() as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_every_8_bit_value() {
+        for v in 0..=255u8 {
+            assert_eq!(linear_to_srgb8(srgb_to_linear(v as f32 / 255.0)), v);
+        }
+    }
+
+    #[test]
+    fn crop_outside_the_image_is_an_error() {
+        let img = RgbImage { width: 4, height: 3, data: (0..36).map(|v| f16::from_f32(v as f32)).collect() };
+        let c = crop_image(&img, Crop { x: 1, y: 1, width: 2, height: 2 }).unwrap();
+        assert_eq!(c.data[0].to_f32(), 15.0);
+        assert_eq!(c.data[3].to_f32(), 18.0);
+        assert_eq!(c.data[6].to_f32(), 27.0);
+        assert!(crop_image(&img, Crop { x: 3, y: 0, width: 2, height: 1 }).is_err());
+    }
+}

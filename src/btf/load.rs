@@ -1,0 +1,258 @@
+//! Loading a BTF stack from whatever the path holds:
+//!
+//! 1. a `btf.json` manifest (the file itself, or a directory that contains one);
+//! 2. a directory of Bonn/UTIA-named images, `tl{θl} pl{φl} tv{θv} pv{φv}.{jpg,png,exr}`
+//!    with space or underscore separators, flat or inside `tv###_pv###/` subfolders;
+//! 3. a single PNG, JPEG or EXR image: a one-image BTF seen and lit along the normal.
+
+use crate::btf::image_io::{is_image_path, read_rgb};
+use crate::btf::{Btf, Crop, Direction, DirectionPair};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use half::f16;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// The manifest's file name.
+pub const MANIFEST: &str = "btf.json";
+
+/// How a stack is read.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadOptions {
+    /// Keep only this rectangle of every image (default: the whole image).
+    pub crop: Option<Crop>,
+}
+
+/// One image of a stack before it is read: where it is and how it was taken.
+#[derive(Clone, Debug)]
+struct Entry {
+    file: PathBuf,
+    pair: DirectionPair,
+}
+
+/// The manifest as written in `btf.json`. Unknown top-level keys are kept for the writer's
+/// own notes (generator, seed, …) and ignored here.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    pub images: Vec<ManifestImage>,
+    /// Where the stack came from (the generator and its parameters); informational.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<serde_json::Value>,
+}
+
+/// One image of the manifest; angles `[θ, φ]` in degrees, `file` relative to the manifest.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManifestImage {
+    pub file: String,
+    pub light: [f32; 2],
+    pub view: [f32; 2],
+}
+
+/// Reads the stack at `path` (see the module documentation for the layouts recognised).
+pub fn load(path: &Path, options: &LoadOptions, progress: &dyn Progress) -> Result<Btf> {
+    let entries = discover(path)?;
+    read_entries(&entries, options, progress)
+}
+
+/// What `path` holds, as a list of images with their directions.
+fn discover(path: &Path) -> Result<Vec<Entry>> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        let manifest = path.join(MANIFEST);
+        if manifest.is_file() {
+            return manifest_entries(&manifest);
+        }
+        return named_entries(path);
+    }
+    if path.file_name().is_some_and(|n| n == MANIFEST)
+        || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        return manifest_entries(path);
+    }
+    if is_image_path(path) {
+        let normal = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
+        return Ok(vec![Entry { file: path.to_path_buf(), pair: normal }]);
+    }
+    Err(Error::format(
+        path,
+        "not a BTF stack: expected a directory, a btf.json manifest or a PNG/JPEG/EXR image",
+    ))
+}
+
+fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
+    if manifest.images.is_empty() {
+        return Err(Error::format(path, "the manifest lists no images"));
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    manifest
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| {
+            let at = |what: &str, e: Error| {
+                Error::format(path, format!("image {i} ({}): {what} {e}", im.file))
+            };
+            let light = Direction::new(im.light[0], im.light[1]).map_err(|e| at("light", e))?;
+            let view = Direction::new(im.view[0], im.view[1]).map_err(|e| at("view", e))?;
+            Ok(Entry { file: dir.join(&im.file), pair: DirectionPair { light, view } })
+        })
+        .collect()
+}
+
+/// Images directly in `dir` and one level down (the UTIA `tv###_pv###/` layout), sorted by
+/// path; other files and hidden files are ignored.
+fn named_entries(dir: &Path) -> Result<Vec<Entry>> {
+    let mut files = Vec::new();
+    for entry in read_dir_sorted(dir)? {
+        if entry.is_dir() {
+            files.extend(read_dir_sorted(&entry)?.into_iter().filter(|p| p.is_file() && is_image_path(p)));
+        } else if is_image_path(&entry) {
+            files.push(entry);
+        }
+    }
+    if files.is_empty() {
+        return Err(Error::format(
+            dir,
+            format!("no images found: expected a {MANIFEST} manifest or images named like tl015_pl000_tv000_pv000.png"),
+        ));
+    }
+    files
+        .into_iter()
+        .map(|file| {
+            let pair = pair_from_name(&file)?;
+            Ok(Entry { file, pair })
+        })
+        .collect()
+}
+
+fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
+        .collect();
+    paths.sort();
+    Ok(paths)
+}
+
+/// Angles named in a Bonn/UTIA file name; the parent folder may supply `tv`/`pv`.
+fn pair_from_name(file: &Path) -> Result<DirectionPair> {
+    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let bad = |why: String| {
+        Error::format(file, format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"))
+    };
+    let mut angles = parse_tokens(&stem).map_err(bad)?;
+    let folder = file.parent().and_then(|p| p.file_name()).map(|s| s.to_string_lossy().into_owned());
+    if let Some(Ok(from_folder)) = folder.as_deref().map(parse_tokens) {
+        for (slot, value) in [(2, from_folder[2]), (3, from_folder[3])] {
+            match (angles[slot], value) {
+                (None, v) => angles[slot] = v,
+                (Some(a), Some(b)) if a != b => {
+                    return Err(bad(format!("its view angles disagree with its folder {}", folder.unwrap_or_default())))
+                }
+                _ => {}
+            }
+        }
+    }
+    let get = |i: usize, tag: &str| angles[i].ok_or_else(|| bad(format!("no {tag} angle")));
+    let (tl, pl, tv, pv) = (get(0, "tl")?, get(1, "pl")?, get(2, "tv")?, get(3, "pv")?);
+    let light = Direction::new(tl, pl).map_err(|e| bad(format!("light: {e}")))?;
+    let view = Direction::new(tv, pv).map_err(|e| bad(format!("view: {e}")))?;
+    Ok(DirectionPair { light, view })
+}
+
+/// Splits `tl015 pl000 tv000 pv000` (spaces or underscores) into its four angles; a token
+/// that is not one of them makes the name unparseable.
+fn parse_tokens(stem: &str) -> Result<[Option<f32>; 4], String> {
+    const TAGS: [&str; 4] = ["tl", "pl", "tv", "pv"];
+    let mut angles = [None; 4];
+    for token in stem.split([' ', '_']).filter(|t| !t.is_empty()) {
+        let lower = token.to_ascii_lowercase();
+        let slot = TAGS
+            .iter()
+            .position(|tag| lower.starts_with(tag))
+            .ok_or_else(|| format!("unexpected '{token}'"))?;
+        let digits = &lower[2..];
+        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(format!("'{token}' is not a tag followed by integer degrees"));
+        }
+        if angles[slot].is_some() {
+            return Err(format!("{} appears twice", TAGS[slot]));
+        }
+        angles[slot] = Some(digits.parse::<u32>().map_err(|_| format!("'{token}' is too large"))? as f32);
+    }
+    Ok(angles)
+}
+
+/// Reads every entry's image in parallel into one compact stack.
+fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progress) -> Result<Btf> {
+    let first = read_rgb(&entries[0].file, options.crop)?;
+    let (width, height) = (first.width, first.height);
+    let per_image = width * height * 3;
+    let mut pixels = vec![f16::ZERO; per_image * entries.len()];
+    pixels[..per_image].copy_from_slice(&first.data);
+    progress.start("loading images", entries.len() as u64);
+    progress.advance(1);
+    pixels
+        .par_chunks_mut(per_image)
+        .zip(entries.par_iter())
+        .skip(1)
+        .try_for_each(|(out, entry)| {
+            let image = read_rgb(&entry.file, options.crop)?;
+            if (image.width, image.height) != (width, height) {
+                return Err(Error::format(
+                    &entry.file,
+                    format!(
+                        "is {}x{} but {} is {width}x{height}; all images of a stack must have one size",
+                        image.width,
+                        image.height,
+                        entries[0].file.display()
+                    ),
+                ));
+            }
+            out.copy_from_slice(&image.data);
+            progress.advance(1);
+            Ok(())
+        })?;
+    progress.finish();
+    let pairs: Vec<DirectionPair> = entries.iter().map(|e| e.pair).collect();
+    if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
+        return Err(Error::format(
+            &entries[b].file,
+            format!("has the same light and view directions as {} ({})", entries[a].file.display(), pairs[a]),
+        ));
+    }
+    Btf::new(width, height, pairs, pixels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bonn_names_parse_with_either_separator() {
+        let a = pair_from_name(Path::new("x/tl015 pl000 tv030 pv120.jpg")).unwrap();
+        assert_eq!((a.light.theta, a.light.phi, a.view.theta, a.view.phi), (15.0, 0.0, 30.0, 120.0));
+        let b = pair_from_name(Path::new("x/tl075_pl345_tv000_pv000.png")).unwrap();
+        assert_eq!((b.light.theta, b.light.phi), (75.0, 345.0));
+    }
+
+    #[test]
+    fn utia_folders_supply_the_view() {
+        let a = pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030.png")).unwrap();
+        assert_eq!((a.view.theta, a.view.phi), (45.0, 90.0));
+        assert!(pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030_tv030_pv090.png")).is_err());
+    }
+
+    #[test]
+    fn unparseable_and_out_of_range_names_are_errors() {
+        for name in ["photo.png", "tl015_pl000_tv000.png", "tl1x_pl0_tv0_pv0.png", "tl095_pl0_tv0_pv0.png", "tl0_tl0_tv0_pv0.png"] {
+            let err = pair_from_name(Path::new(name)).unwrap_err().to_string();
+            assert!(err.starts_with(name), "{err}");
+        }
+    }
+}
