@@ -20,6 +20,7 @@
 //! ```
 
 pub mod btf;
+pub mod cli;
 pub mod error;
 pub mod fsutil;
 pub mod progress;

@@ -66,13 +66,21 @@ fn discover(path: &Path) -> Result<Vec<Entry>> {
         return named_entries(path);
     }
     if path.file_name().is_some_and(|n| n == MANIFEST)
-        || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
     {
         return manifest_entries(path);
     }
     if is_image_path(path) {
-        let normal = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
-        return Ok(vec![Entry { file: path.to_path_buf(), pair: normal }]);
+        let normal = DirectionPair {
+            light: Direction::NORMAL,
+            view: Direction::NORMAL,
+        };
+        return Ok(vec![Entry {
+            file: path.to_path_buf(),
+            pair: normal,
+        }]);
     }
     Err(Error::format(
         path,
@@ -82,8 +90,8 @@ fn discover(path: &Path) -> Result<Vec<Entry>> {
 
 fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let manifest: Manifest =
-        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
+    let manifest: Manifest = serde_json::from_str(&text)
+        .map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
     if manifest.images.is_empty() {
         return Err(Error::format(path, "the manifest lists no images"));
     }
@@ -98,7 +106,10 @@ fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
             };
             let light = Direction::new(im.light[0], im.light[1]).map_err(|e| at("light", e))?;
             let view = Direction::new(im.view[0], im.view[1]).map_err(|e| at("view", e))?;
-            Ok(Entry { file: dir.join(&im.file), pair: DirectionPair { light, view } })
+            Ok(Entry {
+                file: dir.join(&im.file),
+                pair: DirectionPair { light, view },
+            })
         })
         .collect()
 }
@@ -109,7 +120,11 @@ fn named_entries(dir: &Path) -> Result<Vec<Entry>> {
     let mut files = Vec::new();
     for entry in read_dir_sorted(dir)? {
         if entry.is_dir() {
-            files.extend(read_dir_sorted(&entry)?.into_iter().filter(|p| p.is_file() && is_image_path(p)));
+            files.extend(
+                read_dir_sorted(&entry)?
+                    .into_iter()
+                    .filter(|p| p.is_file() && is_image_path(p)),
+            );
         } else if is_image_path(&entry) {
             files.push(entry);
         }
@@ -133,7 +148,10 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
         .collect();
     paths.sort();
     Ok(paths)
@@ -141,18 +159,27 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// Angles named in a Bonn/UTIA file name; the parent folder may supply `tv`/`pv`.
 fn pair_from_name(file: &Path) -> Result<DirectionPair> {
-    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let bad = |why: String| {
         Error::format(file, format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"))
     };
     let mut angles = parse_tokens(&stem).map_err(bad)?;
-    let folder = file.parent().and_then(|p| p.file_name()).map(|s| s.to_string_lossy().into_owned());
+    let folder = file
+        .parent()
+        .and_then(|p| p.file_name())
+        .map(|s| s.to_string_lossy().into_owned());
     if let Some(Ok(from_folder)) = folder.as_deref().map(parse_tokens) {
         for (slot, value) in [(2, from_folder[2]), (3, from_folder[3])] {
             match (angles[slot], value) {
                 (None, v) => angles[slot] = v,
                 (Some(a), Some(b)) if a != b => {
-                    return Err(bad(format!("its view angles disagree with its folder {}", folder.unwrap_or_default())))
+                    return Err(bad(format!(
+                        "its view angles disagree with its folder {}",
+                        folder.unwrap_or_default()
+                    )))
                 }
                 _ => {}
             }
@@ -178,12 +205,18 @@ fn parse_tokens(stem: &str) -> Result<[Option<f32>; 4], String> {
             .ok_or_else(|| format!("unexpected '{token}'"))?;
         let digits = &lower[2..];
         if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(format!("'{token}' is not a tag followed by integer degrees"));
+            return Err(format!(
+                "'{token}' is not a tag followed by integer degrees"
+            ));
         }
         if angles[slot].is_some() {
             return Err(format!("{} appears twice", TAGS[slot]));
         }
-        angles[slot] = Some(digits.parse::<u32>().map_err(|_| format!("'{token}' is too large"))? as f32);
+        angles[slot] = Some(
+            digits
+                .parse::<u32>()
+                .map_err(|_| format!("'{token}' is too large"))? as f32,
+        );
     }
     Ok(angles)
 }
@@ -223,7 +256,11 @@ fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progres
     if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
         return Err(Error::format(
             &entries[b].file,
-            format!("has the same light and view directions as {} ({})", entries[a].file.display(), pairs[a]),
+            format!(
+                "has the same light and view directions as {} ({})",
+                entries[a].file.display(),
+                pairs[a]
+            ),
         ));
     }
     Btf::new(width, height, pairs, pixels)
@@ -236,7 +273,10 @@ mod tests {
     #[test]
     fn bonn_names_parse_with_either_separator() {
         let a = pair_from_name(Path::new("x/tl015 pl000 tv030 pv120.jpg")).unwrap();
-        assert_eq!((a.light.theta, a.light.phi, a.view.theta, a.view.phi), (15.0, 0.0, 30.0, 120.0));
+        assert_eq!(
+            (a.light.theta, a.light.phi, a.view.theta, a.view.phi),
+            (15.0, 0.0, 30.0, 120.0)
+        );
         let b = pair_from_name(Path::new("x/tl075_pl345_tv000_pv000.png")).unwrap();
         assert_eq!((b.light.theta, b.light.phi), (75.0, 345.0));
     }
@@ -245,12 +285,20 @@ mod tests {
     fn utia_folders_supply_the_view() {
         let a = pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030.png")).unwrap();
         assert_eq!((a.view.theta, a.view.phi), (45.0, 90.0));
-        assert!(pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030_tv030_pv090.png")).is_err());
+        assert!(
+            pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030_tv030_pv090.png")).is_err()
+        );
     }
 
     #[test]
     fn unparseable_and_out_of_range_names_are_errors() {
-        for name in ["photo.png", "tl015_pl000_tv000.png", "tl1x_pl0_tv0_pv0.png", "tl095_pl0_tv0_pv0.png", "tl0_tl0_tv0_pv0.png"] {
+        for name in [
+            "photo.png",
+            "tl015_pl000_tv000.png",
+            "tl1x_pl0_tv0_pv0.png",
+            "tl095_pl0_tv0_pv0.png",
+            "tl0_tl0_tv0_pv0.png",
+        ] {
             let err = pair_from_name(Path::new(name)).unwrap_err().to_string();
             assert!(err.starts_with(name), "{err}");
         }
