@@ -20,11 +20,7 @@ impl StagedDir {
         check_target(target, overwrite)?;
         let staging = temp_sibling(target)?;
         std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
-        Ok(StagedDir {
-            staging,
-            target: target.to_path_buf(),
-            committed: false,
-        })
+        Ok(StagedDir { staging, target: target.to_path_buf(), committed: false })
     }
 
     /// Where the files are written while the output is incomplete.
@@ -70,9 +66,7 @@ pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
 
 /// Writes a file atomically: the bytes go to a temporary sibling that is renamed over `path`.
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_with_temp(path, |tmp| {
-        std::fs::write(tmp, bytes).map_err(|e| Error::io(path, e))
-    })
+    write_with_temp(path, |tmp| std::fs::write(tmp, bytes).map_err(|e| Error::io(path, e)))
 }
 
 /// Runs `write` on a temporary sibling of `path`, then renames it into place. The temporary

@@ -21,9 +21,7 @@ impl Direction {
     /// Checks the angles: finite, θ in [0, 90], φ in [-360, 360].
     pub fn new(theta: f32, phi: f32) -> Result<Self> {
         if !theta.is_finite() || !phi.is_finite() {
-            return Err(Error::invalid(format!(
-                "angle θ={theta}, φ={phi} is not a number"
-            )));
+            return Err(Error::invalid(format!("angle θ={theta}, φ={phi} is not a number")));
         }
         if !(0.0..=90.0).contains(&theta) {
             return Err(Error::invalid(format!("θ={theta}° is outside 0–90°")));
@@ -35,10 +33,7 @@ impl Direction {
     }
 
     /// The normal: θ = 0.
-    pub const NORMAL: Direction = Direction {
-        theta: 0.0,
-        phi: 0.0,
-    };
+    pub const NORMAL: Direction = Direction { theta: 0.0, phi: 0.0 };
 
     /// Unit vector (x along s, y along t, z along the normal).
     pub fn unit(&self) -> Vec3 {
@@ -118,14 +113,7 @@ pub enum DirectionSet {
     Grid(usize),
 }
 
-const UBO81_RINGS: [(f32, usize); 6] = [
-    (0.0, 1),
-    (15.0, 6),
-    (30.0, 12),
-    (45.0, 18),
-    (60.0, 20),
-    (75.0, 24),
-];
+const UBO81_RINGS: [(f32, usize); 6] = [(0.0, 1), (15.0, 6), (30.0, 12), (45.0, 18), (60.0, 20), (75.0, 24)];
 const UBO151_RINGS: [(f32, usize); 10] = [
     (0.0, 1),
     (11.0, 6),
@@ -154,9 +142,7 @@ impl DirectionSet {
     /// Every (light, view) pair, view-major (all lights for the first view, then the next).
     pub fn pairs(&self) -> Vec<DirectionPair> {
         let dirs = self.directions();
-        dirs.iter()
-            .flat_map(|&view| dirs.iter().map(move |&light| DirectionPair { light, view }))
-            .collect()
+        dirs.iter().flat_map(|&view| dirs.iter().map(move |&light| DirectionPair { light, view })).collect()
     }
 }
 
@@ -190,10 +176,7 @@ impl fmt::Display for DirectionSet {
 fn rings(spec: &[(f32, usize)]) -> Vec<Direction> {
     spec.iter()
         .flat_map(|&(theta, count)| {
-            (0..count).map(move |k| Direction {
-                theta,
-                phi: 360.0 * k as f32 / count as f32,
-            })
+            (0..count).map(move |k| Direction { theta, phi: 360.0 * k as f32 / count as f32 })
         })
         .collect()
 }
@@ -206,21 +189,10 @@ fn spiral(n: usize) -> Vec<Direction> {
     let round = |a: f64| ((a * 1000.0).round() / 1000.0) as f32;
     (0..n)
         .map(|k| {
-            let f = if n == 1 {
-                0.0
-            } else {
-                k as f64 / (n - 1) as f64
-            };
+            let f = if n == 1 { 0.0 } else { k as f64 / (n - 1) as f64 };
             let theta = (1.0 - (1.0 - cos_max) * f).acos().to_degrees();
-            let phi = if k == 0 {
-                0.0
-            } else {
-                (k as f64 * golden).rem_euclid(360.0)
-            };
-            Direction {
-                theta: round(theta),
-                phi: round(phi),
-            }
+            let phi = if k == 0 { 0.0 } else { (k as f64 * golden).rem_euclid(360.0) };
+            Direction { theta: round(theta), phi: round(phi) }
         })
         .collect()
 }
@@ -235,17 +207,10 @@ mod tests {
         assert_eq!(DirectionSet::Ubo151.directions().len(), 151);
         assert_eq!(DirectionSet::Ubo81.pairs().len(), 6561);
         assert_eq!(DirectionSet::Grid(7).directions().len(), 7);
-        for set in [
-            DirectionSet::Ubo81,
-            DirectionSet::Ubo151,
-            DirectionSet::Grid(50),
-        ] {
+        for set in [DirectionSet::Ubo81, DirectionSet::Ubo151, DirectionSet::Grid(50)] {
             let pairs = set.pairs();
             assert_eq!(first_duplicate(&pairs), None, "{set}");
-            assert!(set
-                .directions()
-                .iter()
-                .all(|d| d.theta <= 75.0 && d.theta >= 0.0));
+            assert!(set.directions().iter().all(|d| d.theta <= 75.0 && d.theta >= 0.0));
         }
     }
 
@@ -267,10 +232,7 @@ mod tests {
         assert!(Direction::new(-1.0, 0.0).is_err());
         assert!(Direction::new(10.0, 400.0).is_err());
         assert!("grid:0".parse::<DirectionSet>().is_err());
-        assert_eq!(
-            "grid:5".parse::<DirectionSet>().unwrap(),
-            DirectionSet::Grid(5)
-        );
+        assert_eq!("grid:5".parse::<DirectionSet>().unwrap(), DirectionSet::Grid(5));
     }
 
     #[test]

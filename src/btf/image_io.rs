@@ -18,15 +18,11 @@ pub struct RgbImage {
 
 /// File types the loaders recognise by extension (case-insensitive).
 pub fn is_image_path(path: &Path) -> bool {
-    matches!(
-        extension(path).as_deref(),
-        Some("png" | "jpg" | "jpeg" | "exr")
-    )
+    matches!(extension(path).as_deref(), Some("png" | "jpg" | "jpeg" | "exr"))
 }
 
 fn extension(path: &Path) -> Option<String> {
-    path.extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase())
 }
 
 /// Reads an image as linear RGB and applies `crop`.
@@ -47,9 +43,7 @@ fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    let decoded = reader
-        .decode()
-        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+    let decoded = reader.decode().map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let data = if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
         decoded
@@ -59,44 +53,21 @@ fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
             .map(|v| f16::from_f32(srgb_to_linear(v as f32 / 65535.0)))
             .collect()
     } else {
-        let lut: Vec<f16> = (0..=255u8)
-            .map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0)))
-            .collect();
-        decoded
-            .to_rgb8()
-            .into_raw()
-            .into_iter()
-            .map(|v| lut[v as usize])
-            .collect()
+        let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
+        decoded.to_rgb8().into_raw().into_iter().map(|v| lut[v as usize]).collect()
     };
-    Ok(RgbImage {
-        width,
-        height,
-        data,
-    })
+    Ok(RgbImage { width, height, data })
 }
 
 fn read_exr(path: &Path) -> Result<RgbImage> {
     use exr::prelude::{read, MetaData, ReadChannels, ReadLayers, ReadSpecificChannel, Vec2};
     let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
     let meta = MetaData::read_from_file(path, false).map_err(bad)?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| Error::format(path, "EXR has no layers"))?;
-    let has = |name: &str| {
-        header
-            .channels
-            .list
-            .iter()
-            .any(|c| c.name == exr::prelude::Text::from(name))
-    };
+    let header = meta.headers.first().ok_or_else(|| Error::format(path, "EXR has no layers"))?;
+    let has = |name: &str| header.channels.list.iter().any(|c| c.name == exr::prelude::Text::from(name));
     let rgb = has("R") && has("G") && has("B");
     if !rgb && !has("Y") {
-        return Err(Error::format(
-            path,
-            "EXR has neither R, G, B nor Y channels",
-        ));
+        return Err(Error::format(path, "EXR has neither R, G, B nor Y channels"));
     }
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     type Pixels = (usize, Vec<f16>);
@@ -131,10 +102,7 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
             .largest_resolution_level()
             .specific_channels()
             .required("Y")
-            .collect_pixels(
-                |size, _| create(size),
-                move |px, pos, (y,): (f16,)| put(px, pos, [y, y, y]),
-            )
+            .collect_pixels(|size, _| create(size), move |px, pos, (y,): (f16,)| put(px, pos, [y, y, y]))
             .first_valid_layer()
             .all_attributes()
             .non_parallel()
@@ -147,21 +115,12 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
     if data.iter().any(|v| !v.is_finite()) {
         return Err(Error::format(path, "EXR contains NaN or infinite values"));
     }
-    Ok(RgbImage {
-        width,
-        height,
-        data,
-    })
+    Ok(RgbImage { width, height, data })
 }
 
 /// Cuts `crop` out of `image`; the message says how the crop misses the image.
 pub fn crop_image(image: &RgbImage, crop: Crop) -> Result<RgbImage, String> {
-    let (x, y, w, h) = (
-        crop.x as usize,
-        crop.y as usize,
-        crop.width as usize,
-        crop.height as usize,
-    );
+    let (x, y, w, h) = (crop.x as usize, crop.y as usize, crop.width as usize, crop.height as usize);
     if x + w > image.width || y + h > image.height {
         return Err(format!(
             "crop {x},{y},{w},{h} does not fit in the {}x{} image",
@@ -173,11 +132,7 @@ pub fn crop_image(image: &RgbImage, crop: Crop) -> Result<RgbImage, String> {
         let start = (row * image.width + x) * 3;
         data.extend_from_slice(&image.data[start..start + w * 3]);
     }
-    Ok(RgbImage {
-        width: w,
-        height: h,
-        data,
-    })
+    Ok(RgbImage { width: w, height: h, data })
 }
 
 /// Writes linear RGB as a half-float EXR (lossless ZIP): exact for `f16` data.
@@ -220,11 +175,7 @@ pub fn srgb_to_linear(v: f32) -> f32 {
 /// Linear to 8-bit sRGB, clamped and rounded.
 pub fn linear_to_srgb8(v: f32) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
-    let s = if v <= 0.003_130_8 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
+    let s = if v <= 0.003_130_8 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0).round() as u8
 }
 
@@ -241,33 +192,11 @@ mod tests {
 
     #[test]
     fn crop_outside_the_image_is_an_error() {
-        let img = RgbImage {
-            width: 4,
-            height: 3,
-            data: (0..36).map(|v| f16::from_f32(v as f32)).collect(),
-        };
-        let c = crop_image(
-            &img,
-            Crop {
-                x: 1,
-                y: 1,
-                width: 2,
-                height: 2,
-            },
-        )
-        .unwrap();
+        let img = RgbImage { width: 4, height: 3, data: (0..36).map(|v| f16::from_f32(v as f32)).collect() };
+        let c = crop_image(&img, Crop { x: 1, y: 1, width: 2, height: 2 }).unwrap();
         assert_eq!(c.data[0].to_f32(), 15.0);
         assert_eq!(c.data[3].to_f32(), 18.0);
         assert_eq!(c.data[6].to_f32(), 27.0);
-        assert!(crop_image(
-            &img,
-            Crop {
-                x: 3,
-                y: 0,
-                width: 2,
-                height: 1
-            }
-        )
-        .is_err());
+        assert!(crop_image(&img, Crop { x: 3, y: 0, width: 2, height: 1 }).is_err());
     }
 }

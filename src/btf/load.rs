@@ -66,21 +66,13 @@ fn discover(path: &Path) -> Result<Vec<Entry>> {
         return named_entries(path);
     }
     if path.file_name().is_some_and(|n| n == MANIFEST)
-        || path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
     {
         return manifest_entries(path);
     }
     if is_image_path(path) {
-        let normal = DirectionPair {
-            light: Direction::NORMAL,
-            view: Direction::NORMAL,
-        };
-        return Ok(vec![Entry {
-            file: path.to_path_buf(),
-            pair: normal,
-        }]);
+        let normal = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
+        return Ok(vec![Entry { file: path.to_path_buf(), pair: normal }]);
     }
     Err(Error::format(
         path,
@@ -90,8 +82,8 @@ fn discover(path: &Path) -> Result<Vec<Entry>> {
 
 fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let manifest: Manifest = serde_json::from_str(&text)
-        .map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
     if manifest.images.is_empty() {
         return Err(Error::format(path, "the manifest lists no images"));
     }
@@ -101,15 +93,11 @@ fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
         .iter()
         .enumerate()
         .map(|(i, im)| {
-            let at = |what: &str, e: Error| {
-                Error::format(path, format!("image {i} ({}): {what} {e}", im.file))
-            };
+            let at =
+                |what: &str, e: Error| Error::format(path, format!("image {i} ({}): {what} {e}", im.file));
             let light = Direction::new(im.light[0], im.light[1]).map_err(|e| at("light", e))?;
             let view = Direction::new(im.view[0], im.view[1]).map_err(|e| at("view", e))?;
-            Ok(Entry {
-                file: dir.join(&im.file),
-                pair: DirectionPair { light, view },
-            })
+            Ok(Entry { file: dir.join(&im.file), pair: DirectionPair { light, view } })
         })
         .collect()
 }
@@ -120,11 +108,7 @@ fn named_entries(dir: &Path) -> Result<Vec<Entry>> {
     let mut files = Vec::new();
     for entry in read_dir_sorted(dir)? {
         if entry.is_dir() {
-            files.extend(
-                read_dir_sorted(&entry)?
-                    .into_iter()
-                    .filter(|p| p.is_file() && is_image_path(p)),
-            );
+            files.extend(read_dir_sorted(&entry)?.into_iter().filter(|p| p.is_file() && is_image_path(p)));
         } else if is_image_path(&entry) {
             files.push(entry);
         }
@@ -148,10 +132,7 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            !p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-        })
+        .filter(|p| !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
         .collect();
     paths.sort();
     Ok(paths)
@@ -159,18 +140,15 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// Angles named in a Bonn/UTIA file name; the parent folder may supply `tv`/`pv`.
 fn pair_from_name(file: &Path) -> Result<DirectionPair> {
-    let stem = file
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let bad = |why: String| {
-        Error::format(file, format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"))
+        Error::format(
+            file,
+            format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"),
+        )
     };
     let mut angles = parse_tokens(&stem).map_err(bad)?;
-    let folder = file
-        .parent()
-        .and_then(|p| p.file_name())
-        .map(|s| s.to_string_lossy().into_owned());
+    let folder = file.parent().and_then(|p| p.file_name()).map(|s| s.to_string_lossy().into_owned());
     if let Some(Ok(from_folder)) = folder.as_deref().map(parse_tokens) {
         for (slot, value) in [(2, from_folder[2]), (3, from_folder[3])] {
             match (angles[slot], value) {
@@ -205,18 +183,12 @@ fn parse_tokens(stem: &str) -> Result<[Option<f32>; 4], String> {
             .ok_or_else(|| format!("unexpected '{token}'"))?;
         let digits = &lower[2..];
         if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(format!(
-                "'{token}' is not a tag followed by integer degrees"
-            ));
+            return Err(format!("'{token}' is not a tag followed by integer degrees"));
         }
         if angles[slot].is_some() {
             return Err(format!("{} appears twice", TAGS[slot]));
         }
-        angles[slot] = Some(
-            digits
-                .parse::<u32>()
-                .map_err(|_| format!("'{token}' is too large"))? as f32,
-        );
+        angles[slot] = Some(digits.parse::<u32>().map_err(|_| format!("'{token}' is too large"))? as f32);
     }
     Ok(angles)
 }
@@ -240,7 +212,7 @@ fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progres
                 return Err(Error::format(
                     &entry.file,
                     format!(
-                        "is {}x{} but {} is {width}x{height}; all images of a stack must have one size",
+                        "this image is {}x{} pixels but {} is {width}x{height}; all images of a stack must have one size",
                         image.width,
                         image.height,
                         entries[0].file.display()
@@ -256,11 +228,7 @@ fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progres
     if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
         return Err(Error::format(
             &entries[b].file,
-            format!(
-                "has the same light and view directions as {} ({})",
-                entries[a].file.display(),
-                pairs[a]
-            ),
+            format!("has the same light and view directions as {} ({})", entries[a].file.display(), pairs[a]),
         ));
     }
     Btf::new(width, height, pairs, pixels)
@@ -273,10 +241,7 @@ mod tests {
     #[test]
     fn bonn_names_parse_with_either_separator() {
         let a = pair_from_name(Path::new("x/tl015 pl000 tv030 pv120.jpg")).unwrap();
-        assert_eq!(
-            (a.light.theta, a.light.phi, a.view.theta, a.view.phi),
-            (15.0, 0.0, 30.0, 120.0)
-        );
+        assert_eq!((a.light.theta, a.light.phi, a.view.theta, a.view.phi), (15.0, 0.0, 30.0, 120.0));
         let b = pair_from_name(Path::new("x/tl075_pl345_tv000_pv000.png")).unwrap();
         assert_eq!((b.light.theta, b.light.phi), (75.0, 345.0));
     }
@@ -285,9 +250,7 @@ mod tests {
     fn utia_folders_supply_the_view() {
         let a = pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030.png")).unwrap();
         assert_eq!((a.view.theta, a.view.phi), (45.0, 90.0));
-        assert!(
-            pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030_tv030_pv090.png")).is_err()
-        );
+        assert!(pair_from_name(Path::new("stack/tv045_pv090/tl015_pl030_tv030_pv090.png")).is_err());
     }
 
     #[test]

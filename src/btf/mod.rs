@@ -32,27 +32,17 @@ impl std::str::FromStr for Crop {
     fn from_str(s: &str) -> Result<Self> {
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
         let bad = || {
-            Error::invalid(format!(
-                "crop '{s}': expected x,y,w,h (four non-negative integers, w and h > 0)"
-            ))
+            Error::invalid(format!("crop '{s}': expected x,y,w,h (four non-negative integers, w and h > 0)"))
         };
         if parts.len() != 4 {
             return Err(bad());
         }
-        let v: Vec<u32> = parts
-            .iter()
-            .map(|p| p.parse::<u32>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| bad())?;
+        let v: Vec<u32> =
+            parts.iter().map(|p| p.parse::<u32>()).collect::<Result<_, _>>().map_err(|_| bad())?;
         if v[2] == 0 || v[3] == 0 {
             return Err(bad());
         }
-        Ok(Crop {
-            x: v[0],
-            y: v[1],
-            width: v[2],
-            height: v[3],
-        })
+        Ok(Crop { x: v[0], y: v[1], width: v[2], height: v[3] })
     }
 }
 
@@ -70,16 +60,9 @@ pub struct Btf {
 impl Btf {
     /// Assembles a stack from its parts; checks that the sizes agree and the pairs are
     /// distinct.
-    pub fn new(
-        width: usize,
-        height: usize,
-        pairs: Vec<DirectionPair>,
-        pixels: Vec<f16>,
-    ) -> Result<Self> {
+    pub fn new(width: usize, height: usize, pairs: Vec<DirectionPair>, pixels: Vec<f16>) -> Result<Self> {
         if width == 0 || height == 0 || pairs.is_empty() {
-            return Err(Error::invalid(
-                "a BTF needs at least one image of at least 1x1 pixels",
-            ));
+            return Err(Error::invalid("a BTF needs at least one image of at least 1x1 pixels"));
         }
         if pixels.len() != pairs.len() * width * height * 3 {
             return Err(Error::invalid(format!(
@@ -94,12 +77,7 @@ impl Btf {
                 pairs[a]
             )));
         }
-        Ok(Btf {
-            width,
-            height,
-            pairs,
-            pixels,
-        })
+        Ok(Btf { width, height, pairs, pixels })
     }
 
     pub fn width(&self) -> usize {
@@ -139,11 +117,7 @@ impl Btf {
     /// Linear RGB of pixel (x, y) in image `i`.
     pub fn rgb(&self, i: usize, x: usize, y: usize) -> [f32; 3] {
         let o = ((i * self.height + y) * self.width + x) * 3;
-        [
-            self.pixels[o].to_f32(),
-            self.pixels[o + 1].to_f32(),
-            self.pixels[o + 2].to_f32(),
-        ]
+        [self.pixels[o].to_f32(), self.pixels[o + 1].to_f32(), self.pixels[o + 2].to_f32()]
     }
 
     /// The distinct view directions, in first-seen order.

@@ -67,19 +67,15 @@ pub fn write_stack(
             .collect(),
         source,
     };
-    let json =
-        serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
     write_file_atomic(&staged.path().join(MANIFEST), json.as_bytes())?;
     staged.commit()
 }
 
 fn file_names(pairs: &[DirectionPair], format: ImageFormat) -> Vec<String> {
     let whole = |a: f32| a.fract() == 0.0 && a >= 0.0;
-    let bonn = pairs.iter().all(|p| {
-        [p.light.theta, p.light.phi, p.view.theta, p.view.phi]
-            .into_iter()
-            .all(whole)
-    });
+    let bonn =
+        pairs.iter().all(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi].into_iter().all(whole));
     let ext = format.extension();
     pairs
         .iter()
@@ -88,10 +84,7 @@ fn file_names(pairs: &[DirectionPair], format: ImageFormat) -> Vec<String> {
             if bonn {
                 format!(
                     "tl{:03}_pl{:03}_tv{:03}_pv{:03}.{ext}",
-                    p.light.theta as u32,
-                    p.light.phi as u32,
-                    p.view.theta as u32,
-                    p.view.phi as u32
+                    p.light.theta as u32, p.light.phi as u32, p.view.theta as u32, p.view.phi as u32
                 )
             } else {
                 format!("image_{i:05}.{ext}")

@@ -55,9 +55,7 @@ pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {
     let Some(kind) = args.kind else {
         bail!("name a material kind: pebbles, weave or bricks (see gen --list)")
     };
-    let Some(output) = args.output else {
-        bail!("name the output directory with -o DIR")
-    };
+    let Some(output) = args.output else { bail!("name the output directory with -o DIR") };
     check_target(&output, args.force)?;
     let params = GenParams {
         size: args.size,

@@ -58,24 +58,10 @@ fn print_stack(path: &Path, stack: &Btf) {
     println!("{}: BTF stack", path.display());
     println!("  size    {} x {} pixels", stack.width(), stack.height());
     println!("  images  {} ({complete})", stack.len());
-    println!(
-        "  views   {} distinct, θ up to {}°",
-        views.len(),
-        max_theta(&views)
-    );
-    println!(
-        "  lights  {} distinct, θ up to {}°",
-        lights.len(),
-        max_theta(&lights)
-    );
-    println!(
-        "  mean    linear RGB ({:.3}, {:.3}, {:.3})",
-        mean[0], mean[1], mean[2]
-    );
-    println!(
-        "  memory  {:.1} MiB as f16",
-        std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64
-    );
+    println!("  views   {} distinct, θ up to {}°", views.len(), max_theta(&views));
+    println!("  lights  {} distinct, θ up to {}°", lights.len(), max_theta(&lights));
+    println!("  mean    linear RGB ({:.3}, {:.3}, {:.3})", mean[0], mean[1], mean[2]);
+    println!("  memory  {:.1} MiB as f16", std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64);
 }
 
 fn max_theta(dirs: &[Direction]) -> f32 {

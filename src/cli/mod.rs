@@ -14,13 +14,7 @@ use std::process::ExitCode;
 /// under many view and light directions. btfsynth reads, generates, analyses and
 /// synthesizes BTFs on triangle meshes (Tong et al., SIGGRAPH 2002).
 #[derive(Parser)]
-#[command(
-    name = "btfsynth",
-    version,
-    about,
-    long_about,
-    propagate_version = true
-)]
+#[command(name = "btfsynth", version, about, long_about, propagate_version = true)]
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -51,10 +45,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.verbose);
     if let Some(threads) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads.max(1))
-            .build_global()
-        {
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global() {
             eprintln!("error: cannot start {threads} threads: {e}");
             return ExitCode::FAILURE;
         }
@@ -108,8 +99,6 @@ fn init_logging(verbose: u8) {
 fn install_panic_hook() {
     std::panic::set_hook(Box::new(|info| {
         let message = info.to_string().replace('\n', " ");
-        eprintln!(
-            "error: internal error ({message}); please report this at the project's issue tracker"
-        );
+        eprintln!("error: internal error ({message}); please report this at the project's issue tracker");
     }));
 }

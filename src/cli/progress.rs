@@ -12,10 +12,7 @@ pub struct Bars {
 
 impl Bars {
     pub fn new(quiet: bool) -> Self {
-        Bars {
-            quiet,
-            current: Mutex::new(None),
-        }
+        Bars { quiet, current: Mutex::new(None) }
     }
 
     fn with_bar(&self, f: impl FnOnce(&ProgressBar)) {
@@ -29,11 +26,7 @@ impl Bars {
 
 impl Progress for Bars {
     fn start(&self, stage: &str, total: u64) {
-        let target = if self.quiet {
-            ProgressDrawTarget::hidden()
-        } else {
-            ProgressDrawTarget::stderr()
-        };
+        let target = if self.quiet { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() };
         let bar = ProgressBar::with_draw_target(Some(total), target);
         if let Ok(style) =
             ProgressStyle::with_template("{msg:>16} [{bar:30}] {pos}/{len} ({elapsed}, eta {eta})")

@@ -55,8 +55,7 @@ fn smooth(t: f32) -> f32 {
 
 /// Two octaves of value noise in [0, 1].
 fn roughness(seed: u64, x: f32, y: f32, period: f32, cells: i64) -> f32 {
-    (2.0 * value_noise(seed, x, y, period, cells) + value_noise(seed ^ 1, x, y, period, 2 * cells))
-        / 3.0
+    (2.0 * value_noise(seed, x, y, period, cells) + value_noise(seed ^ 1, x, y, period, 2 * cells)) / 3.0
 }
 
 /// A whole number of features per period, at least `min`, rounded to `multiple`.
@@ -77,12 +76,7 @@ impl Pebbles {
     pub fn new(size: usize, seed: u64) -> Self {
         let period = size as f32;
         let cells = count(period, 11.0, 2, 1);
-        Pebbles {
-            seed,
-            period,
-            cells,
-            cell: period / cells as f32,
-        }
+        Pebbles { seed, period, cells, cell: period / cells as f32 }
     }
 
     /// The stone of cell (i, j): centre, semi-axes, orientation, dome height.
@@ -91,10 +85,7 @@ impl Pebbles {
         let u = |k| unit(self.seed, ci, cj, k);
         let r = self.cell * (0.36 + 0.16 * u(3));
         Stone {
-            centre: [
-                (i as f32 + 0.3 + 0.4 * u(1)) * self.cell,
-                (j as f32 + 0.3 + 0.4 * u(2)) * self.cell,
-            ],
+            centre: [(i as f32 + 0.3 + 0.4 * u(1)) * self.cell, (j as f32 + 0.3 + 0.4 * u(2)) * self.cell],
             axes: [r, r * (0.6 + 0.35 * u(4))],
             angle: std::f32::consts::PI * u(5),
             height: r * (0.45 + 0.25 * u(6)),
@@ -105,10 +96,7 @@ impl Pebbles {
 
     /// The stone whose surface is highest at (x, y), with that height.
     fn top_stone(&self, x: f32, y: f32) -> Option<(Stone, f32)> {
-        let (i, j) = (
-            (x / self.cell).floor() as i64,
-            (y / self.cell).floor() as i64,
-        );
+        let (i, j) = ((x / self.cell).floor() as i64, (y / self.cell).floor() as i64);
         let mut best: Option<(Stone, f32)> = None;
         for dj in -1..=1 {
             for di in -1..=1 {
@@ -142,10 +130,7 @@ impl Stone {
     fn height_at(&self, x: f32, y: f32) -> Option<f32> {
         let (dx, dy) = (x - self.centre[0], y - self.centre[1]);
         let (s, c) = self.angle.sin_cos();
-        let (u, v) = (
-            (c * dx + s * dy) / self.axes[0],
-            (-s * dx + c * dy) / self.axes[1],
-        );
+        let (u, v) = ((c * dx + s * dy) / self.axes[0], (-s * dx + c * dy) / self.axes[1]);
         let d2 = u * u + v * v;
         // A flattened dome: steep sides cast shadows, a rounded top catches highlights.
         (d2 < 1.0).then(|| self.height * (1.0 - d2).powf(0.4))
@@ -175,10 +160,7 @@ impl Material for Pebbles {
     }
 
     fn gloss(&self, x: f32, y: f32) -> f32 {
-        if self
-            .top_stone(x, y)
-            .is_some_and(|(_, h)| h > self.ground(x, y))
-        {
+        if self.top_stone(x, y).is_some_and(|(_, h)| h > self.ground(x, y)) {
             0.25
         } else {
             0.02
@@ -206,11 +188,7 @@ impl Weave {
     pub fn new(size: usize, seed: u64) -> Self {
         // An even thread count keeps the over/under alternation periodic.
         let threads = count(size as f32, 8.0, 2, 2);
-        Weave {
-            seed,
-            spacing: size as f32 / threads as f32,
-            threads,
-        }
+        Weave { seed, spacing: size as f32 / threads as f32, threads }
     }
 
     /// Height of the thread surface of one family: `along` runs along the thread, `across`
@@ -245,17 +223,12 @@ impl Material for Weave {
 
     fn albedo(&self, x: f32, y: f32) -> Vec3 {
         let (warp, _, index, along) = self.warp_on_top(x, y);
-        let base = if warp {
-            Vec3::new(0.62, 0.12, 0.1)
-        } else {
-            Vec3::new(0.78, 0.7, 0.5)
-        };
+        let base = if warp { Vec3::new(0.62, 0.12, 0.1) } else { Vec3::new(0.78, 0.7, 0.5) };
         let family = if warp { 1 } else { 2 };
         let thread = 0.85 + 0.3 * unit(self.seed, index, family, 11);
         // Twisted fibres: streaks slanted along the thread.
         let across = if warp { x } else { y };
-        let twist =
-            0.5 + 0.5 * (6.0 * std::f32::consts::PI * (along + across) / self.spacing).sin();
+        let twist = 0.5 + 0.5 * (6.0 * std::f32::consts::PI * (along + across) / self.spacing).sin();
         base * thread * (0.75 + 0.25 * twist)
     }
 
@@ -289,24 +262,13 @@ impl Bricks {
         let rows = count(period, 9.0, 2, 2);
         let row_height = period / rows as f32;
         let cols = count(period, 2.0 * row_height, 1, 1);
-        Bricks {
-            seed,
-            period,
-            rows,
-            cols,
-            row_height,
-            brick_width: period / cols as f32,
-        }
+        Bricks { seed, period, rows, cols, row_height, brick_width: period / cols as f32 }
     }
 
     /// Brick indices and the distance from (x, y) to the nearest edge of its brick.
     fn brick(&self, x: f32, y: f32) -> (i64, i64, f32) {
         let row = (y / self.row_height).floor() as i64;
-        let shift = if row.rem_euclid(2) == 1 {
-            0.5 * self.brick_width
-        } else {
-            0.0
-        };
+        let shift = if row.rem_euclid(2) == 1 { 0.5 * self.brick_width } else { 0.0 };
         let col = ((x - shift) / self.brick_width).floor() as i64;
         let u = x - shift - col as f32 * self.brick_width;
         let v = y - row as f32 * self.row_height;
@@ -338,8 +300,7 @@ impl Material for Bricks {
         if edge <= self.mortar() {
             return Vec3::new(0.55, 0.53, 0.5) * (0.85 + 0.3 * grain);
         }
-        let red = Vec3::new(0.5, 0.17, 0.1)
-            .lerp(Vec3::new(0.62, 0.33, 0.18), unit(self.seed, row, col, 22));
+        let red = Vec3::new(0.5, 0.17, 0.1).lerp(Vec3::new(0.62, 0.33, 0.18), unit(self.seed, row, col, 22));
         red * (0.75 + 0.45 * grain)
     }
 
@@ -361,11 +322,7 @@ mod tests {
     use super::*;
 
     fn materials(size: usize) -> Vec<Box<dyn Material>> {
-        vec![
-            Box::new(Pebbles::new(size, 3)),
-            Box::new(Weave::new(size, 3)),
-            Box::new(Bricks::new(size, 3)),
-        ]
+        vec![Box::new(Pebbles::new(size, 3)), Box::new(Weave::new(size, 3)), Box::new(Bricks::new(size, 3))]
     }
 
     #[test]
@@ -384,22 +341,11 @@ mod tests {
     #[test]
     fn heights_stay_under_their_bound_and_vary() {
         for m in materials(32) {
-            let hs: Vec<f32> = (0..64 * 64)
-                .map(|k| m.height((k % 64) as f32 * 0.5, (k / 64) as f32 * 0.5))
-                .collect();
-            let (lo, hi) = hs
-                .iter()
-                .fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
-            assert!(
-                lo >= 0.0 && hi <= m.max_height(),
-                "{lo} {hi} {}",
-                m.max_height()
-            );
-            assert!(
-                hi - lo > 1.0,
-                "relief of {} texels is too flat to cast shadows",
-                hi - lo
-            );
+            let hs: Vec<f32> =
+                (0..64 * 64).map(|k| m.height((k % 64) as f32 * 0.5, (k / 64) as f32 * 0.5)).collect();
+            let (lo, hi) = hs.iter().fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
+            assert!(lo >= 0.0 && hi <= m.max_height(), "{lo} {hi} {}", m.max_height());
+            assert!(hi - lo > 1.0, "relief of {} texels is too flat to cast shadows", hi - lo);
         }
     }
 }

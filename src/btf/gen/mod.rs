@@ -10,7 +10,7 @@
 pub mod materials;
 pub mod trace;
 
-use crate::btf::{Btf, DirectionSet};
+use crate::btf::{Btf, Direction, DirectionPair, DirectionSet};
 use crate::progress::Progress;
 use crate::{Error, Result};
 use glam::Vec3;
@@ -33,18 +33,9 @@ pub enum MaterialKind {
 impl MaterialKind {
     /// Every kind with a one-line description, for `gen --list`.
     pub const ALL: [(MaterialKind, &'static str); 3] = [
-        (
-            MaterialKind::Pebbles,
-            "rounded stones on a sandy ground (Worley-like cells)",
-        ),
-        (
-            MaterialKind::Weave,
-            "plain weave: interlaced red warp and beige weft threads",
-        ),
-        (
-            MaterialKind::Bricks,
-            "running-bond bricks with bevelled edges and mortar grooves",
-        ),
+        (MaterialKind::Pebbles, "rounded stones on a sandy ground (Worley-like cells)"),
+        (MaterialKind::Weave, "plain weave: interlaced red warp and beige weft threads"),
+        (MaterialKind::Bricks, "running-bond bricks with bevelled edges and mortar grooves"),
     ];
 
     pub fn name(self) -> &'static str {
@@ -80,22 +71,14 @@ pub struct GenParams {
 
 impl Default for GenParams {
     fn default() -> Self {
-        GenParams {
-            size: 64,
-            directions: DirectionSet::Ubo81,
-            seed: 0,
-            samples_per_pixel: 4,
-        }
+        GenParams { size: 64, directions: DirectionSet::Ubo81, seed: 0, samples_per_pixel: 4 }
     }
 }
 
 impl GenParams {
     fn validate(&self) -> Result<()> {
         if !(4..=2048).contains(&self.size) {
-            return Err(Error::invalid(format!(
-                "size {} is outside 4..=2048 pixels",
-                self.size
-            )));
+            return Err(Error::invalid(format!("size {} is outside 4..=2048 pixels", self.size)));
         }
         let root = (self.samples_per_pixel as f64).sqrt().round() as usize;
         if root == 0 || root * root != self.samples_per_pixel || root > 8 {
@@ -111,60 +94,64 @@ impl GenParams {
 /// Renders `kind` on every view × light pair of `params.directions`. Deterministic: the
 /// same parameters give the same pixels whatever the thread count.
 pub fn generate(kind: MaterialKind, params: &GenParams, progress: &dyn Progress) -> Result<Btf> {
+    let dome = params.directions.directions();
+    generate_pairs(kind, params, &dome, &dome, progress)
+}
+
+/// Renders `kind` for every pair of `views` × `lights` (view-major: all lights of the first
+/// view, then the next); `params.directions` is ignored.
+pub fn generate_pairs(
+    kind: MaterialKind,
+    params: &GenParams,
+    views: &[Direction],
+    lights: &[Direction],
+    progress: &dyn Progress,
+) -> Result<Btf> {
     params.validate()?;
+    if views.is_empty() || lights.is_empty() {
+        return Err(Error::invalid("generation needs at least one view and one light"));
+    }
     let material = kind.material(params.size, params.seed);
-    let directions = params.directions.directions();
-    let max_theta = directions.iter().map(|d| d.theta).fold(0.0, f32::max);
+    let max_theta = views.iter().map(|d| d.theta).fold(0.0, f32::max);
     let field = HeightField::new(material.as_ref(), params.size, max_theta);
     tracing::debug!(triangles = field.triangle_count(), "height field meshed");
 
     let samples = subsamples(params);
-    progress.start("tracing views", directions.len() as u64);
-    let hits: Vec<Vec<Option<Hit>>> = directions
+    progress.start("tracing views", views.len() as u64);
+    let hits: Vec<Vec<Option<Hit>>> = views
         .par_iter()
         .map(|view| {
             let unit = view.unit();
-            let hits = samples
-                .iter()
-                .map(|&(x, y)| field.primary(x, y, unit))
-                .collect();
+            let hits = samples.iter().map(|&(x, y)| field.primary(x, y, unit)).collect();
             progress.advance(1);
             hits
         })
         .collect();
     progress.finish();
 
-    let pairs = params.directions.pairs();
     let per_pixel = params.samples_per_pixel;
     let per_image = params.size * params.size * 3;
-    let mut pixels = vec![f16::ZERO; per_image * pairs.len()];
-    progress.start("shading images", pairs.len() as u64);
-    pixels
-        .par_chunks_mut(per_image)
-        .enumerate()
-        .for_each(|(i, image)| {
-            // Pairs are view-major over the same dome: image i is view i / n, light i % n.
-            let (view, light) = (
-                directions[i / directions.len()].unit(),
-                pairs[i].light.unit(),
-            );
-            let view_hits = &hits[i / directions.len()];
-            for (pixel, out) in image.chunks_exact_mut(3).enumerate() {
-                let sum: Vec3 = view_hits[pixel * per_pixel..(pixel + 1) * per_pixel]
-                    .iter()
-                    .flatten()
-                    .map(|hit| field.shade(hit, view, light))
-                    .sum();
-                let rgb = sum / per_pixel as f32;
-                out.copy_from_slice(&[
-                    f16::from_f32(rgb.x),
-                    f16::from_f32(rgb.y),
-                    f16::from_f32(rgb.z),
-                ]);
-            }
-            progress.advance(1);
-        });
+    let mut pixels = vec![f16::ZERO; per_image * views.len() * lights.len()];
+    progress.start("shading images", (views.len() * lights.len()) as u64);
+    pixels.par_chunks_mut(per_image).enumerate().for_each(|(i, image)| {
+        let (v, l) = (i / lights.len(), i % lights.len());
+        let (view, light) = (views[v].unit(), lights[l].unit());
+        for (pixel, out) in image.chunks_exact_mut(3).enumerate() {
+            let sum: Vec3 = hits[v][pixel * per_pixel..(pixel + 1) * per_pixel]
+                .iter()
+                .flatten()
+                .map(|hit| field.shade(hit, view, light))
+                .sum();
+            let rgb = sum / per_pixel as f32;
+            out.copy_from_slice(&[f16::from_f32(rgb.x), f16::from_f32(rgb.y), f16::from_f32(rgb.z)]);
+        }
+        progress.advance(1);
+    });
     progress.finish();
+    let pairs = views
+        .iter()
+        .flat_map(|&view| lights.iter().map(move |&light| DirectionPair { light, view }))
+        .collect();
     Btf::new(params.size, params.size, pairs, pixels)
 }
 

@@ -69,30 +69,13 @@ impl<'m> HeightField<'m> {
             for i in 0..n {
                 let k = j * (n + 1) + i;
                 let (a, b, c, d) = (grid[k], grid[k + 1], grid[k + n + 1], grid[k + n + 2]);
-                triangles.push(Triangle {
-                    v0: a,
-                    v1: b,
-                    v2: d,
-                });
-                triangles.push(Triangle {
-                    v0: a,
-                    v1: d,
-                    v2: c,
-                });
+                triangles.push(Triangle { v0: a, v1: b, v2: d });
+                triangles.push(Triangle { v0: a, v1: d, v2: c });
             }
         }
-        let bvh = build_cwbvh_from_tris(
-            &triangles,
-            BvhBuildParams::medium_build(),
-            &mut Default::default(),
-        );
+        let bvh = build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut Default::default());
         let reference = (height_sum / grid.len() as f64) as f32;
-        HeightField {
-            material,
-            triangles,
-            bvh,
-            reference,
-        }
+        HeightField { material, triangles, bvh, reference }
     }
 
     /// The surface seen through sample-window point (x, y) of the reference plane, looking
@@ -135,8 +118,7 @@ impl<'m> HeightField<'m> {
         }
         let half = (view + light).normalize();
         let shininess = self.material.shininess();
-        let lobe =
-            hit.gloss * (shininess + 8.0) / 8.0 * hit.normal.dot(half).max(0.0).powf(shininess);
+        let lobe = hit.gloss * (shininess + 8.0) / 8.0 * hit.normal.dot(half).max(0.0).powf(shininess);
         (hit.albedo + Vec3::splat(lobe)) * cos_light
     }
 
