@@ -64,7 +64,7 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
     let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
     let meta = MetaData::read_from_file(path, false).map_err(bad)?;
     let header = meta.headers.first().ok_or_else(|| Error::format(path, "EXR has no layers"))?;
-    let has = |name: &str| header.channels.list.iter().any(|c| c.name == name);
+    let has = |name: &str| header.channels.list.iter().any(|c| c.name == *name);
     let rgb = has("R") && has("G") && has("B");
     if !rgb && !has("Y") {
         return Err(Error::format(path, "EXR has neither R, G, B nor Y channels"));
