@@ -25,5 +25,6 @@ pub mod cli;
 pub mod error;
 pub mod fsutil;
 pub mod progress;
+pub mod seeded;
 
 pub use error::{Error, Result};

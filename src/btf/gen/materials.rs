@@ -20,22 +20,7 @@ pub trait Material: Sync {
     fn max_height(&self) -> f32;
 }
 
-/// A small deterministic hash (SplitMix64 finaliser) of a seed and integer coordinates:
-/// random values that do not depend on evaluation order or thread count.
-pub(crate) fn hash(seed: u64, a: i64, b: i64, c: i64) -> u64 {
-    let mut z = seed
-        ^ (a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ (b as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ (c as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// `hash` mapped to [0, 1).
-pub(crate) fn unit(seed: u64, a: i64, b: i64, c: i64) -> f32 {
-    (hash(seed, a, b, c) >> 40) as f32 / (1u64 << 24) as f32
-}
+pub(crate) use crate::seeded::unit;
 
 /// Smooth value noise on a lattice of `cells` per `period` texels, periodic in both axes.
 fn value_noise(seed: u64, x: f32, y: f32, period: f32, cells: i64) -> f32 {
