@@ -19,6 +19,7 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+pub mod analysis;
 pub mod btf;
 pub mod error;
 pub mod fsutil;
