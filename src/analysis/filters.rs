@@ -368,7 +368,7 @@ fn sample_kernel(spec: &FilterSpec) -> Result<Vec<f32>, String> {
     let peak = k.iter().fold(0f64, |m, w| m.max(w.abs()));
     // A kernel that is only rounding noise (a derivative narrower than a pixel sampled at
     // its zero crossings) would be blown up to garbage by the normalisation.
-    if !(l1 > 0.0 && peak > 1e-9 * l1) || !l1.is_finite() {
+    if !(l1.is_finite() && l1 > 0.0 && peak > 1e-9 * l1) {
         return Err(format!(
             "the {} kernel with sigma {} vanishes on a {}-pixel support; use a larger sigma",
             spec.kind.name(),

@@ -6,6 +6,8 @@
 //! - [`kmeans`]: seeded, thread-count-independent k-means for textons and representative
 //!   images.
 
+pub mod convolve;
 pub mod filters;
 
+pub use convolve::{convolve_bank, BankConvolver, Padding};
 pub use filters::{Filter, FilterBank, FilterKind, FilterSpec, Rgb8Image};
