@@ -12,11 +12,15 @@
 
 pub mod basis;
 pub mod convolve;
+pub mod features;
 pub mod filters;
 pub mod gamma;
 pub mod knn;
 pub mod npy;
+pub mod pipeline;
 pub mod pyramid;
+pub mod select;
+pub mod textons;
 
 pub use convolve::{convolve_bank, BankConvolver, Padding};
 pub use filters::{Filter, FilterBank, FilterKind, FilterSpec, Rgb8Image};
