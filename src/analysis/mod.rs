@@ -8,6 +8,8 @@
 
 pub mod convolve;
 pub mod filters;
+pub mod kmeans;
 
 pub use convolve::{convolve_bank, BankConvolver, Padding};
 pub use filters::{Filter, FilterBank, FilterKind, FilterSpec, Rgb8Image};
+pub use kmeans::{assign, kmeans, Assignment, Clustering, KMeansOptions};
