@@ -15,6 +15,7 @@ pub mod convolve;
 pub mod features;
 pub mod filters;
 pub mod gamma;
+pub mod kmeans;
 pub mod knn;
 pub mod npy;
 pub mod pipeline;
@@ -24,3 +25,4 @@ pub mod textons;
 
 pub use convolve::{convolve_bank, BankConvolver, Padding};
 pub use filters::{Filter, FilterBank, FilterKind, FilterSpec, Rgb8Image};
+pub use kmeans::{assign, kmeans, Assignment, Clustering, KMeansOptions};
