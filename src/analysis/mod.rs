@@ -21,6 +21,7 @@ pub mod npy;
 pub mod pipeline;
 pub mod pyramid;
 pub mod select;
+pub mod store;
 pub mod textons;
 
 pub use convolve::{convolve_bank, BankConvolver, Padding};

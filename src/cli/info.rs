@@ -1,13 +1,15 @@
 //! `btfsynth info`: say what a path is.
 
 use super::progress::Bars;
+use crate::analysis::store::{self, Manifest};
 use crate::btf::{load, Btf, Crop, Direction, LoadOptions};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// A BTF stack: a directory (btf.json or Bonn/UTIA-named images), a btf.json, or one image.
+    /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, or one
+    /// image) or an analysis directory.
     path: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -18,6 +20,15 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
+    if args.path.join(store::MANIFEST).is_file() {
+        let manifest = store::read_manifest(&args.path)?;
+        if args.json {
+            println!("{}", analysis_json(&manifest));
+        } else {
+            print_analysis(&args.path, &manifest);
+        }
+        return Ok(());
+    }
     let stack = load(&args.path, &LoadOptions { crop: args.crop }, bars)?;
     if args.json {
         println!("{}", stack_json(&args.path, &stack));
@@ -77,4 +88,33 @@ fn mean_rgb(stack: &Btf) -> [f64; 3] {
     }
     let n = (stack.pixels().len() / 3).max(1) as f64;
     sum.map(|s| (s / n * 1e4).round() / 1e4)
+}
+
+/// The analysis' description as JSON; the keys are documented in the README.
+pub fn analysis_json(m: &Manifest) -> serde_json::Value {
+    let levels: Vec<serde_json::Value> = m
+        .levels
+        .iter()
+        .map(|l| serde_json::json!({"width": l.width, "height": l.height, "textons": l.textons, "embedding_dims": l.embedding_dims}))
+        .collect();
+    serde_json::json!({
+        "kind": "analysis",
+        "levels": levels,
+        "k": m.k,
+        "selected": m.selected.len(),
+        "images": m.images,
+        "width": m.width,
+        "height": m.height,
+        "source": m.source.path,
+        "fingerprint": m.source.fingerprint,
+    })
+}
+
+fn print_analysis(path: &Path, m: &Manifest) {
+    println!("{}: texton analysis of {}", path.display(), m.source.path);
+    println!("  sample  {} x {} pixels, {} images, {} selected", m.width, m.height, m.images, m.selected.len());
+    for (i, l) in m.levels.iter().enumerate() {
+        println!("  level {i} {} x {}: {} textons, embedding d = {}, basis {} images ({:.2}% of variance)", l.width, l.height, l.textons, l.embedding_dims, l.basis_rank, 100.0 * l.basis_energy);
+    }
+    println!("  kNN     k = {}, {}x{} neighbourhoods{}", m.k, m.params.neighborhood, m.params.neighborhood, if m.params.tileable { ", tileable" } else { "" });
 }

@@ -1,5 +1,6 @@
 //! Argument parsing, progress display and error printing: the only terminal code.
 
+mod analyze;
 mod demo;
 mod gen;
 mod info;
@@ -33,7 +34,9 @@ pub struct Cli {
 enum Command {
     /// Ray-trace a synthetic BTF stack from a procedural height field.
     Gen(gen::GenArgs),
-    /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image).
+    /// Texton analysis of a stack: filter bank, textons, Γ, pyramid, kNN lists (Tong §4, §5.2).
+    Analyze(analyze::AnalyzeArgs),
+    /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
     Demo(demo::DemoArgs),
@@ -53,6 +56,7 @@ pub fn main() -> ExitCode {
     let bars = progress::Bars::new(cli.quiet);
     let result = match cli.command {
         Command::Gen(args) => gen::run(args, &bars),
+        Command::Analyze(args) => analyze::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };
