@@ -3,7 +3,7 @@
 //!
 //! - [`filters`]: filter banks defined in TOML (`filters/lm48.toml`, Leung and Malik's 48).
 //! - [`convolve`]: every image filtered with a whole bank by FFT.
-//! - [`kmeans`]: seeded, thread-count-independent k-means for textons and representative
+//! - [`kmeans`](mod@kmeans): seeded, thread-count-independent k-means for textons and representative
 //!   images.
 
 pub mod convolve;
