@@ -63,7 +63,9 @@ impl Padding {
 
 /// Filters images with one bank, caching the kernels' spectra per image size.
 ///
-/// Shareable between threads; the cache holds one entry per distinct FFT size seen.
+/// Shareable between threads. The cache keeps one entry per distinct FFT size seen, of
+/// `filters × (fw / 2 + 1) × fh` complex values: with LM48, 2.4 MB for 64×64 images and
+/// 60 MB for 512×512; drop the convolver to free it.
 pub struct BankConvolver {
     bank: FilterBank,
     plans: Mutex<HashMap<(usize, usize), Arc<SizePlan>>>,

@@ -30,6 +30,11 @@ pub const DEFAULT_SEED: u64 = 2002;
 /// not depend on the thread count.
 const ROW_BLOCK: usize = 256;
 
+/// k-means++ skips a point when the new seed is at least twice as far from the point's
+/// nearest seed as the point is (squared: 4×); the extra 0.1% covers rounding in the
+/// distances, so a skipped point is never one the new seed would have won.
+const PRUNE_MARGIN: f32 = 4.004;
+
 /// Parameters of [`kmeans`]; see each field for its default.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KMeansOptions {
@@ -259,25 +264,39 @@ fn plus_plus(
     progress.start("k-means++", k as u64);
     let first = rng.random_range(0..points.n);
     let mut chosen = vec![first];
-    let mut nearest_d: Vec<f32> = (0..points.n)
+    // Each point's squared distance to its nearest seed, and which seed that is.
+    let mut nearest_d: Vec<(f32, usize)> = (0..points.n)
         .into_par_iter()
-        .map(|i| squared_distance(points.row(i), points.row(first)))
+        .map(|i| (squared_distance(points.row(i), points.row(first)), 0))
         .collect();
     progress.advance(1);
     while chosen.len() < k {
-        let total: f64 = nearest_d.iter().map(|&d| d as f64).sum();
+        let total: f64 = nearest_d.iter().map(|&(d, _)| d as f64).sum();
         if total <= 0.0 {
             break; // every point coincides with a seed: no more distinct points
         }
         let next = sample(&nearest_d, rng.random::<f64>() * total);
-        chosen.push(next);
         let centre = points.row(next);
+        let gaps: Vec<f32> = chosen
+            .par_iter()
+            .map(|&c| squared_distance(points.row(c), centre))
+            .collect();
+        let seed = chosen.len();
+        chosen.push(next);
         nearest_d
             .par_iter_mut()
             .enumerate()
             .with_min_len(64)
-            .for_each(|(i, m)| {
-                *m = m.min(squared_distance(points.row(i), centre));
+            .for_each(|(i, (d, s))| {
+                // Triangle inequality: a seed at least twice as far from x's nearest seed
+                // as x is cannot be nearer to x, so most rows need not be read at all once
+                // the clusters have seeds.
+                if gaps[*s] < PRUNE_MARGIN * *d {
+                    let e = squared_distance(points.row(i), centre);
+                    if e < *d {
+                        (*d, *s) = (e, seed);
+                    }
+                }
             });
         progress.advance(1);
     }
@@ -289,11 +308,11 @@ fn plus_plus(
     matrix(&rows, chosen.len(), points.d).to_owned()
 }
 
-/// The first index where the running sum of `weights` exceeds `target`; rounding can leave
+/// The first index where the running sum of the weights (first members) exceeds `target`; rounding can leave
 /// `target` just past the total, hence the fallback to the last positive weight.
-fn sample(weights: &[f32], target: f64) -> usize {
+fn sample(weights: &[(f32, usize)], target: f64) -> usize {
     let (mut sum, mut last) = (0f64, 0);
-    for (i, &w) in weights.iter().enumerate().filter(|(_, &w)| w > 0.0) {
+    for (i, &(w, _)) in weights.iter().enumerate().filter(|(_, &(w, _))| w > 0.0) {
         sum += w as f64;
         last = i;
         if sum > target {
@@ -651,6 +670,37 @@ mod tests {
         assert!(e
             .to_string()
             .contains("centres have 4 dimensions but the points have 3"));
+    }
+
+    /// Textbook k-means++ drawing the same random numbers, without the pruning.
+    fn unpruned_plus_plus(data: &Array2<f32>, k: usize, seed: u64) -> Array2<f32> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let row = |i: usize| data.row(i).to_vec();
+        let mut chosen = vec![rng.random_range(0..data.nrows())];
+        let mut nearest: Vec<f32> = (0..data.nrows())
+            .map(|i| squared_distance(&row(i), &row(chosen[0])))
+            .collect();
+        while chosen.len() < k {
+            let total: f64 = nearest.iter().map(|&d| d as f64).sum();
+            let weights: Vec<(f32, usize)> = nearest.iter().map(|&d| (d, 0)).collect();
+            let next = sample(&weights, rng.random::<f64>() * total);
+            chosen.push(next);
+            for (i, d) in nearest.iter_mut().enumerate() {
+                *d = d.min(squared_distance(&row(i), &row(next)));
+            }
+        }
+        data.select(ndarray::Axis(0), &chosen)
+    }
+
+    #[test]
+    fn pruning_leaves_the_seeds_unchanged() {
+        // Tight clusters are where the triangle-inequality test skips most points.
+        let centres = uniform(20, 16, 10.0, 11);
+        let (data, _) = blobs(&centres, 30, 0.2, 12);
+        for seed in 0..5 {
+            let seeds = kmeans_plus_plus(data.view(), 40, seed).unwrap();
+            assert_eq!(seeds, unpruned_plus_plus(&data, 40, seed), "seed {seed}");
+        }
     }
 
     #[test]
