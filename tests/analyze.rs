@@ -24,7 +24,8 @@ fn two_material_stack() -> Btf {
         for y in 0..SIZE {
             for x in 0..SIZE {
                 let v = if x < SIZE / 2 {
-                    let (fx, fy) = (x as f32 * std::f32::consts::TAU / 6.0, y as f32 * std::f32::consts::TAU / 6.0);
+                    let (fx, fy) =
+                        (x as f32 * std::f32::consts::TAU / 6.0, y as f32 * std::f32::consts::TAU / 6.0);
                     let n = glam::Vec3::new(-fx.cos() * fy.sin(), -fx.sin() * fy.cos(), 0.8).normalize();
                     0.7 * n.dot(l).max(0.0)
                 } else {
@@ -61,13 +62,36 @@ fn analysis_directory_is_consistent_and_deterministic() {
     write_stack(&two_material_stack(), &stack_dir, ImageFormat::Exr, None, false, &Silent).unwrap();
     let run = |name: &str| {
         let out = dir.path().join(name);
-        let r = btfsynth(&["-q", "analyze", stack_dir.to_str().unwrap(), "-o", out.to_str().unwrap(), "--textons", "16", "--levels", "2", "--k", "5"]);
+        let r = btfsynth(&[
+            "-q",
+            "analyze",
+            stack_dir.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--textons",
+            "16",
+            "--levels",
+            "2",
+            "--k",
+            "5",
+        ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         out
     };
     let (a, b) = (run("a"), run("b"));
-    for file in ["level0_textons.npy", "level0_gamma.npy", "level0_knn.npy", "level0_knn2.npy", "level1_knn.npy", "images.npy"] {
-        assert_eq!(std::fs::read(a.join(file)).unwrap(), std::fs::read(b.join(file)).unwrap(), "{file} differs between runs");
+    for file in [
+        "level0_textons.npy",
+        "level0_gamma.npy",
+        "level0_knn.npy",
+        "level0_knn2.npy",
+        "level1_knn.npy",
+        "images.npy",
+    ] {
+        assert_eq!(
+            std::fs::read(a.join(file)).unwrap(),
+            std::fs::read(b.join(file)).unwrap(),
+            "{file} differs between runs"
+        );
     }
     let gamma: npy::NpyArray<f32> = npy::read(&a.join("level0_gamma.npy")).unwrap();
     let n = gamma.shape[0];
@@ -100,9 +124,22 @@ fn a_single_photograph_is_a_one_image_btf() {
     let dir = tempfile::tempdir().unwrap();
     let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
     let out = dir.path().join("gravel");
-    let r = btfsynth(&["-q", "analyze", texture, "-o", out.to_str().unwrap(), "--crop", "0,0,64,64", "--textons", "32", "--levels", "2"]);
+    let r = btfsynth(&[
+        "-q",
+        "analyze",
+        texture,
+        "-o",
+        out.to_str().unwrap(),
+        "--crop",
+        "0,0,64,64",
+        "--textons",
+        "32",
+        "--levels",
+        "2",
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let json: serde_json::Value = serde_json::from_slice(&btfsynth(&["info", out.to_str().unwrap(), "--json"]).stdout).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&btfsynth(&["info", out.to_str().unwrap(), "--json"]).stdout).unwrap();
     assert_eq!((json["images"].as_u64(), json["selected"].as_u64()), (Some(1), Some(1)));
     assert_eq!(json["levels"][0]["textons"], 32);
     assert_eq!(json["levels"][1]["textons"], 8);
@@ -116,14 +153,24 @@ fn bad_analysis_inputs_leave_nothing_behind() {
     let s = stack_dir.to_str().unwrap();
     let out = dir.path().join("out");
     let o = out.to_str().unwrap();
-    assert_one_line_error(&btfsynth(&["analyze", s, "-o", o, "--textons", "0"]), "--textons must be at least 1");
+    assert_one_line_error(
+        &btfsynth(&["analyze", s, "-o", o, "--textons", "0"]),
+        "--textons must be at least 1",
+    );
     assert_one_line_error(&btfsynth(&["analyze", s, "-o", o, "--levels", "4"]), "use --levels 3 or fewer");
     assert_one_line_error(&btfsynth(&["analyze", s, "-o", o, "--neighborhood", "4"]), "--neighborhood 4");
     assert_one_line_error(&btfsynth(&["analyze", s, "-o", "/proc/forbidden/out"]), "/proc/forbidden");
     let bank = dir.path().join("bank.toml");
     std::fs::write(&bank, "filters = [ { kind = \"blob\", sigma = 1.0 } ]").unwrap();
-    assert_one_line_error(&btfsynth(&["analyze", s, "-o", o, "--filters", bank.to_str().unwrap()]), "bank.toml");
-    let first = std::fs::read_dir(&stack_dir).unwrap().filter_map(|e| e.ok()).find(|e| e.path().extension().is_some_and(|x| x == "png")).unwrap();
+    assert_one_line_error(
+        &btfsynth(&["analyze", s, "-o", o, "--filters", bank.to_str().unwrap()]),
+        "bank.toml",
+    );
+    let first = std::fs::read_dir(&stack_dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .find(|e| e.path().extension().is_some_and(|x| x == "png"))
+        .unwrap();
     std::fs::write(first.path(), b"corrupt").unwrap();
     assert_one_line_error(&btfsynth(&["analyze", s, "-o", o]), &first.file_name().to_string_lossy());
     assert_eq!(entries(dir.path()), vec!["bank.toml".to_string(), "stack".to_string()], "nothing written");

@@ -89,10 +89,7 @@ struct SizePlan {
 impl BankConvolver {
     /// A convolver for `bank`; nothing is computed until the first image.
     pub fn new(bank: FilterBank) -> Self {
-        BankConvolver {
-            bank,
-            plans: Mutex::new(HashMap::new()),
-        }
+        BankConvolver { bank, plans: Mutex::new(HashMap::new()) }
     }
 
     /// The bank every image is filtered with.
@@ -128,8 +125,7 @@ impl BankConvolver {
         progress: &dyn Progress,
     ) -> Result<Vec<Array3<f32>>> {
         for (i, image) in images.iter().enumerate() {
-            check_image(image, width, height)
-                .map_err(|e| Error::invalid(format!("image {i}: {e}")))?;
+            check_image(image, width, height).map_err(|e| Error::invalid(format!("image {i}: {e}")))?;
         }
         // Built before the parallel loop so the workers share one plan instead of racing
         // to build it.
@@ -159,11 +155,9 @@ impl BankConvolver {
         let mut padded = pad(image, width, height, half, padding, plan.fw, plan.fh);
         let spectrum = plan.forward(&mut padded)?;
         let mut out = vec![0f32; self.bank.len() * width * height];
-        out.par_chunks_mut(width * height)
-            .zip(plan.kernels.par_iter())
-            .try_for_each(|(plane, kernel)| {
-                plan.respond(&spectrum, kernel, (half, half), (width, height), plane)
-            })?;
+        out.par_chunks_mut(width * height).zip(plan.kernels.par_iter()).try_for_each(|(plane, kernel)| {
+            plan.respond(&spectrum, kernel, (half, half), (width, height), plane)
+        })?;
         Array3::from_shape_vec((self.bank.len(), height, width), out)
             .map_err(|e| Error::invalid(format!("internal error shaping filter responses: {e}")))
     }
@@ -211,32 +205,24 @@ pub fn correlate_direct(
 ) -> Result<Vec<f32>> {
     check_image(image, width, height)?;
     let (size, half) = (filter.size(), filter.half() as isize);
-    let at = |x: isize, y: isize| {
-        image[padding.source(y, height) * width + padding.source(x, width)] as f64
-    };
+    let at = |x: isize, y: isize| image[padding.source(y, height) * width + padding.source(x, width)] as f64;
     let pixel = |x: isize, y: isize| -> f32 {
         let taps = filter.weights().chunks_exact(size).enumerate();
         let sum: f64 = taps
             .flat_map(|(r, row)| {
                 let dy = r as isize - half;
-                row.iter()
-                    .enumerate()
-                    .map(move |(c, &w)| (c as isize - half, dy, w))
+                row.iter().enumerate().map(move |(c, &w)| (c as isize - half, dy, w))
             })
             .map(|(dx, dy, w)| w as f64 * at(x + dx, y + dy))
             .sum();
         sum as f32
     };
-    Ok((0..width * height)
-        .map(|i| pixel((i % width) as isize, (i / width) as isize))
-        .collect())
+    Ok((0..width * height).map(|i| pixel((i % width) as isize, (i / width) as isize)).collect())
 }
 
 fn check_image(image: &[f32], width: usize, height: usize) -> Result<()> {
     if width == 0 || height == 0 {
-        return Err(Error::invalid(format!(
-            "cannot filter a {width}×{height} image: it has no pixels"
-        )));
+        return Err(Error::invalid(format!("cannot filter a {width}×{height} image: it has no pixels")));
     }
     if width.checked_mul(height) != Some(image.len()) {
         return Err(Error::invalid(format!(
@@ -267,9 +253,7 @@ fn pad(
     fw: usize,
     fh: usize,
 ) -> Vec<f32> {
-    let columns: Vec<usize> = (0..fw)
-        .map(|x| padding.source(x as isize - half as isize, width))
-        .collect();
+    let columns: Vec<usize> = (0..fw).map(|x| padding.source(x as isize - half as isize, width)).collect();
     let mut padded = Vec::with_capacity(fw * fh);
     for y in 0..fh {
         let row = padding.source(y as isize - half as isize, height) * width;
@@ -352,16 +336,13 @@ impl SizePlan {
         let mut row_out = self.r2c.make_output_vec();
         let mut scratch = self.r2c.make_scratch_vec();
         for (y, row) in frame.chunks_exact_mut(self.fw).enumerate() {
-            self.r2c
-                .process_with_scratch(row, &mut row_out, &mut scratch)
-                .map_err(fft_error)?;
+            self.r2c.process_with_scratch(row, &mut row_out, &mut scratch).map_err(fft_error)?;
             for (c, &z) in row_out.iter().enumerate() {
                 spectrum[c * fh + y] = z;
             }
         }
         let mut col_scratch = vec![Complex::default(); self.col_forward.get_inplace_scratch_len()];
-        self.col_forward
-            .process_with_scratch(&mut spectrum, &mut col_scratch);
+        self.col_forward.process_with_scratch(&mut spectrum, &mut col_scratch);
         Ok(spectrum)
     }
 
@@ -376,11 +357,9 @@ impl SizePlan {
         out: &mut [f32],
     ) -> Result<()> {
         let (cw, fh) = (self.cw(), self.fh);
-        let mut product: Vec<Complex<f32>> =
-            spectrum.iter().zip(kernel).map(|(a, b)| a * b).collect();
+        let mut product: Vec<Complex<f32>> = spectrum.iter().zip(kernel).map(|(a, b)| a * b).collect();
         let mut col_scratch = vec![Complex::default(); self.col_inverse.get_inplace_scratch_len()];
-        self.col_inverse
-            .process_with_scratch(&mut product, &mut col_scratch);
+        self.col_inverse.process_with_scratch(&mut product, &mut col_scratch);
         let mut row_in = self.c2r.make_input_vec();
         let mut row_out = self.c2r.make_output_vec();
         let mut scratch = self.c2r.make_scratch_vec();
@@ -396,9 +375,7 @@ impl SizePlan {
             if self.fw % 2 == 0 {
                 row_in[cw - 1].im = 0.0;
             }
-            self.c2r
-                .process_with_scratch(&mut row_in, &mut row_out, &mut scratch)
-                .map_err(fft_error)?;
+            self.c2r.process_with_scratch(&mut row_in, &mut row_out, &mut scratch).map_err(fft_error)?;
             out_row.copy_from_slice(&row_out[origin.0..origin.0 + width]);
         }
         Ok(())
@@ -419,10 +396,7 @@ mod tests {
     }
 
     fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0, f32::max)
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
     }
 
     /// FFT responses of every filter against the direct definition.
@@ -434,10 +408,7 @@ mod tests {
             let direct = correlate_direct(&image, width, height, filter, padding).unwrap();
             let plane = fft.index_axis(ndarray::Axis(0), i);
             let err = max_abs_diff(plane.as_slice().unwrap(), &direct);
-            assert!(
-                err < 1e-4,
-                "{width}×{height} {padding:?} filter {i}: max error {err}"
-            );
+            assert!(err < 1e-4, "{width}×{height} {padding:?} filter {i}: max error {err}");
         }
     }
 
@@ -492,9 +463,8 @@ mod tests {
     fn wrap_padding_commutes_with_circular_shifts() {
         let (w, h, (sx, sy)) = (19, 12, (5, 7));
         let image = random_image(w, h, 3);
-        let shifted: Vec<f32> = (0..w * h)
-            .map(|i| image[((i / w + h - sy) % h) * w + (i % w + w - sx) % w])
-            .collect();
+        let shifted: Vec<f32> =
+            (0..w * h).map(|i| image[((i / w + h - sy) % h) * w + (i % w + w - sx) % w]).collect();
         let conv = BankConvolver::new(FilterBank::lm48());
         let a = conv.filter(&image, w, h, Padding::Wrap).unwrap();
         let b = conv.filter(&shifted, w, h, Padding::Wrap).unwrap();
@@ -509,32 +479,21 @@ mod tests {
         let conv = BankConvolver::new(FilterBank::lm48());
         let images: Vec<Vec<f32>> = (0..3).map(|s| random_image(16, 9, s)).collect();
         let refs: Vec<&[f32]> = images.iter().map(Vec::as_slice).collect();
-        let many = conv
-            .filter_many(&refs, 16, 9, Padding::Mirror, &Silent)
-            .unwrap();
+        let many = conv.filter_many(&refs, 16, 9, Padding::Mirror, &Silent).unwrap();
         assert_eq!(conv.plans.lock().unwrap().len(), 1);
         for (image, responses) in images.iter().zip(&many) {
-            assert_eq!(
-                conv.filter(image, 16, 9, Padding::Mirror).unwrap(),
-                *responses
-            );
+            assert_eq!(conv.filter(image, 16, 9, Padding::Mirror).unwrap(), *responses);
         }
     }
 
     #[test]
     fn bad_images_are_rejected() {
         let conv = BankConvolver::new(FilterBank::lm48());
-        let err = |image: &[f32], w, h| {
-            conv.filter(image, w, h, Padding::Mirror)
-                .unwrap_err()
-                .to_string()
-        };
+        let err = |image: &[f32], w, h| conv.filter(image, w, h, Padding::Mirror).unwrap_err().to_string();
         assert!(err(&[], 0, 0).contains("no pixels"));
         assert!(err(&[0.0; 5], 2, 3).contains("needs 6 values, got 5"));
         assert!(err(&[0.0, f32::NAN, 0.0, 0.0], 2, 2).contains("pixel (1, 0) is NaN"));
-        let e = conv
-            .filter_many(&[&[0.0; 4], &[0.0; 3]], 2, 2, Padding::Wrap, &Silent)
-            .unwrap_err();
+        let e = conv.filter_many(&[&[0.0; 4], &[0.0; 3]], 2, 2, Padding::Wrap, &Silent).unwrap_err();
         assert!(e.to_string().starts_with("image 1: "), "{e}");
     }
 

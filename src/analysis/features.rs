@@ -48,7 +48,9 @@ pub fn texton_features(
     let per_block = 3 * convolver.bank().len();
     let mut features = Array2::zeros((width * height, blocks.len() * per_block));
     for (b, (r, w)) in responses.iter().zip(&weights).enumerate() {
-        features.slice_mut(ndarray::s![.., b * per_block..(b + 1) * per_block]).assign(&(r.t().to_owned() * *w));
+        features
+            .slice_mut(ndarray::s![.., b * per_block..(b + 1) * per_block])
+            .assign(&(r.t().to_owned() * *w));
     }
     Ok(features)
 }

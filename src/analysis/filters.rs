@@ -178,12 +178,8 @@ impl FilterBank {
     /// its path).
     pub fn from_toml_str(text: &str, source: impl AsRef<Path>) -> Result<Self> {
         let source = source.as_ref();
-        let file: BankFile = toml::from_str(text).map_err(|e| {
-            Error::format(
-                source,
-                format!("not a valid filter bank: {}", one_line(text, &e)),
-            )
-        })?;
+        let file: BankFile = toml::from_str(text)
+            .map_err(|e| Error::format(source, format!("not a valid filter bank: {}", one_line(text, &e))))?;
         let default_support = file.support;
         let specs = file
             .filters
@@ -225,10 +221,7 @@ impl FilterBank {
             .enumerate()
             .map(|(i, spec)| Filter::new(spec).map_err(|m| format!("filter {i}: {m}")))
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(FilterBank {
-            name: name.into(),
-            filters,
-        })
+        Ok(FilterBank { name: name.into(), filters })
     }
 
     /// The bank's `name` (TOML default: the file name).
@@ -265,12 +258,7 @@ impl FilterBank {
         let rows = self.len().div_ceil(cols);
         let width = cols * cell + (cols + 1) * SHEET_GAP;
         let height = rows * cell + (rows + 1) * SHEET_GAP;
-        let mut pixels: Vec<u8> = SHEET_GAP_RGB
-            .iter()
-            .copied()
-            .cycle()
-            .take(width * height * 3)
-            .collect();
+        let mut pixels: Vec<u8> = SHEET_GAP_RGB.iter().copied().cycle().take(width * height * 3).collect();
         for (i, filter) in self.filters.iter().enumerate() {
             let x0 = SHEET_GAP + (i % cols) * (cell + SHEET_GAP);
             let y0 = SHEET_GAP + (i / cols) * (cell + SHEET_GAP);
@@ -282,11 +270,7 @@ impl FilterBank {
                 }
             }
         }
-        Rgb8Image {
-            width,
-            height,
-            pixels,
-        }
+        Rgb8Image { width, height, pixels }
     }
 }
 
@@ -312,8 +296,7 @@ fn kernel_greys(filter: &Filter, cell: usize) -> Vec<u8> {
     let (size, offset) = (filter.size(), (cell - filter.size()) / 2);
     for (r, row) in filter.weights.chunks_exact(size).enumerate() {
         for (c, &w) in row.iter().enumerate() {
-            greys[(offset + r) * cell + offset + c] =
-                (128.0 + w * scale).round().clamp(0.0, 255.0) as u8;
+            greys[(offset + r) * cell + offset + c] = (128.0 + w * scale).round().clamp(0.0, 255.0) as u8;
         }
     }
     greys
@@ -321,22 +304,13 @@ fn kernel_greys(filter: &Filter, cell: usize) -> Vec<u8> {
 
 fn validate_spec(spec: &FilterSpec) -> Result<(), String> {
     if !(spec.sigma.is_finite() && spec.sigma > 0.0) {
-        return Err(format!(
-            "sigma must be a positive number of pixels, got {}",
-            spec.sigma
-        ));
+        return Err(format!("sigma must be a positive number of pixels, got {}", spec.sigma));
     }
     if !(spec.elongation.is_finite() && spec.elongation > 0.0) {
-        return Err(format!(
-            "elongation must be positive (1 = isotropic), got {}",
-            spec.elongation
-        ));
+        return Err(format!("elongation must be positive (1 = isotropic), got {}", spec.elongation));
     }
     if !spec.orientation_deg.is_finite() {
-        return Err(format!(
-            "orientation must be a number of degrees, got {}",
-            spec.orientation_deg
-        ));
+        return Err(format!("orientation must be a number of degrees, got {}", spec.orientation_deg));
     }
     if spec.support % 2 == 0 || spec.support > MAX_SUPPORT {
         return Err(format!(
@@ -413,13 +387,8 @@ mod tests {
             orientation_deg: 30.0 * k as f64,
             support: 49,
         };
-        let round = |kind, sigma| FilterSpec {
-            kind,
-            sigma,
-            elongation: 1.0,
-            orientation_deg: 0.0,
-            support: 49,
-        };
+        let round =
+            |kind, sigma| FilterSpec { kind, sigma, elongation: 1.0, orientation_deg: 0.0, support: 49 };
         let scales = [SQRT2, 2.0, 2.0 * SQRT2];
         let mut specs = Vec::new();
         for kind in [FilterKind::FirstDerivative, FilterKind::SecondDerivative] {
@@ -428,16 +397,8 @@ mod tests {
             }
         }
         let round_scales = [SQRT2, 2.0, 2.0 * SQRT2, 4.0];
-        specs.extend(
-            round_scales
-                .iter()
-                .map(|&s| round(FilterKind::Laplacian, s)),
-        );
-        specs.extend(
-            round_scales
-                .iter()
-                .map(|&s| round(FilterKind::Laplacian, 3.0 * s)),
-        );
+        specs.extend(round_scales.iter().map(|&s| round(FilterKind::Laplacian, s)));
+        specs.extend(round_scales.iter().map(|&s| round(FilterKind::Laplacian, 3.0 * s)));
         specs.extend(round_scales.iter().map(|&s| round(FilterKind::Gaussian, s)));
         specs
     }
@@ -450,9 +411,7 @@ mod tests {
     fn response(filter: &Filter, f: impl Fn(f64, f64) -> f64) -> f64 {
         let (size, half) = (filter.size(), filter.half() as f64);
         let w = filter.weights();
-        (0..size * size)
-            .map(|i| w[i] as f64 * f((i % size) as f64 - half, half - (i / size) as f64))
-            .sum()
+        (0..size * size).map(|i| w[i] as f64 * f((i % size) as f64 - half, half - (i / size) as f64)).sum()
     }
 
     /// A step edge through the origin along angle `phi`, bright on its +v side.
@@ -481,20 +440,10 @@ mod tests {
         let specs = reference_specs();
         for (i, (f, spec)) in bank.filters().iter().zip(&specs).enumerate() {
             let got = f.spec();
-            assert_eq!(
-                (got.kind, got.support),
-                (spec.kind, spec.support),
-                "filter {i}"
-            );
+            assert_eq!((got.kind, got.support), (spec.kind, spec.support), "filter {i}");
             assert!((got.sigma - spec.sigma).abs() < 1e-12, "filter {i} sigma");
-            assert!(
-                (got.elongation - spec.elongation).abs() < 1e-12,
-                "filter {i} elongation"
-            );
-            assert!(
-                (got.orientation_deg - spec.orientation_deg).abs() < 1e-12,
-                "filter {i} orientation"
-            );
+            assert!((got.elongation - spec.elongation).abs() < 1e-12, "filter {i} elongation");
+            assert!((got.orientation_deg - spec.orientation_deg).abs() < 1e-12, "filter {i} orientation");
             assert_eq!(f.weights().len(), 49 * 49);
             let sum: f64 = f.weights().iter().map(|&w| w as f64).sum();
             let l1: f64 = f.weights().iter().map(|&w| (w as f64).abs()).sum();
@@ -506,50 +455,29 @@ mod tests {
             }
         }
         let (d1, d2, log, gauss) = (0, 18, 36, 44);
-        let kinds = bank
-            .filters()
-            .iter()
-            .map(|f| f.spec().kind)
-            .collect::<Vec<_>>();
-        assert!(kinds[d1..d2]
-            .iter()
-            .all(|&k| k == FilterKind::FirstDerivative));
-        assert!(kinds[d2..log]
-            .iter()
-            .all(|&k| k == FilterKind::SecondDerivative));
-        assert!(kinds[log..gauss]
-            .iter()
-            .all(|&k| k == FilterKind::Laplacian));
+        let kinds = bank.filters().iter().map(|f| f.spec().kind).collect::<Vec<_>>();
+        assert!(kinds[d1..d2].iter().all(|&k| k == FilterKind::FirstDerivative));
+        assert!(kinds[d2..log].iter().all(|&k| k == FilterKind::SecondDerivative));
+        assert!(kinds[log..gauss].iter().all(|&k| k == FilterKind::Laplacian));
         assert!(kinds[gauss..].iter().all(|&k| k == FilterKind::Gaussian));
     }
 
     #[test]
     fn first_derivative_answers_an_edge_and_its_mirror_image_with_opposite_signs() {
-        for spec in reference_specs()
-            .into_iter()
-            .filter(|s| s.kind == FilterKind::FirstDerivative)
-        {
+        for spec in reference_specs().into_iter().filter(|s| s.kind == FilterKind::FirstDerivative) {
             let f = filter(spec);
             let phi = spec.orientation_deg.to_radians();
             let edge = response(&f, step(phi));
             // Reflecting the edge across its own line swaps its bright and dark sides.
             let mirrored = response(&f, step(phi + std::f64::consts::PI));
-            assert!(
-                edge > 0.3,
-                "{spec:?}: {edge} (bright on +v must answer positively)"
-            );
-            assert!(
-                (edge + mirrored).abs() < 1e-5 * edge,
-                "{spec:?}: {edge} vs {mirrored}"
-            );
+            assert!(edge > 0.3, "{spec:?}: {edge} (bright on +v must answer positively)");
+            assert!((edge + mirrored).abs() < 1e-5 * edge, "{spec:?}: {edge} vs {mirrored}");
         }
     }
 
     #[test]
     fn orientation_k_answers_most_strongly_to_an_edge_at_k_pi_over_6() {
-        let angles: Vec<f64> = (0..12)
-            .map(|j| j as f64 * std::f64::consts::PI / 12.0)
-            .collect();
+        let angles: Vec<f64> = (0..12).map(|j| j as f64 * std::f64::consts::PI / 12.0).collect();
         for spec in reference_specs().into_iter().filter(|s| s.elongation > 1.0) {
             let f = filter(spec);
             let best = angles
@@ -559,10 +487,7 @@ mod tests {
                     _ => response(&f, bar(phi)).abs(),
                 })
                 .enumerate()
-                .fold(
-                    (0, -1.0),
-                    |best, (j, r)| if r > best.1 { (j, r) } else { best },
-                );
+                .fold((0, -1.0), |best, (j, r)| if r > best.1 { (j, r) } else { best });
             let expected = (spec.orientation_deg / 15.0).round() as usize;
             assert_eq!(best.0, expected, "{spec:?} peaks at {}°", best.0 * 15);
         }
@@ -605,9 +530,7 @@ mod tests {
             ("support = 1\nfilters = [{ kind = \"first_derivative\", sigma = 1.0 }]", "vanishes"),
         ];
         for (text, needle) in cases {
-            let err = FilterBank::from_toml_str(text, "bank.toml")
-                .unwrap_err()
-                .to_string();
+            let err = FilterBank::from_toml_str(text, "bank.toml").unwrap_err().to_string();
             assert!(err.starts_with("bank.toml: "), "{text:?} -> {err}");
             assert!(err.contains(needle), "{text:?} -> {err}");
             assert!(!err.contains('\n'), "{text:?} -> {err}");
@@ -629,10 +552,7 @@ mod tests {
     fn contact_sheet_lays_out_every_kernel_around_mid_grey() {
         let bank = FilterBank::lm48();
         let sheet = bank.contact_sheet();
-        assert_eq!(
-            (sheet.width, sheet.height),
-            (12 * 49 + 13 * 2, 4 * 49 + 5 * 2)
-        );
+        assert_eq!((sheet.width, sheet.height), (12 * 49 + 13 * 2, 4 * 49 + 5 * 2));
         assert_eq!(sheet.pixels.len(), sheet.width * sheet.height * 3);
         let grey = |x: usize, y: usize| &sheet.pixels[(y * sheet.width + x) * 3..][..3];
         assert_eq!(grey(0, 0), SHEET_GAP_RGB);

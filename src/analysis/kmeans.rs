@@ -58,23 +58,14 @@ pub struct KMeansOptions {
 
 impl Default for KMeansOptions {
     fn default() -> Self {
-        KMeansOptions {
-            k: 400,
-            max_iterations: 100,
-            tolerance: 1e-4,
-            runs: 1,
-            seed: DEFAULT_SEED,
-        }
+        KMeansOptions { k: 400, max_iterations: 100, tolerance: 1e-4, runs: 1, seed: DEFAULT_SEED }
     }
 }
 
 impl KMeansOptions {
     /// The defaults with `k` clusters.
     pub fn with_k(k: usize) -> Self {
-        KMeansOptions {
-            k,
-            ..Self::default()
-        }
+        KMeansOptions { k, ..Self::default() }
     }
 }
 
@@ -154,8 +145,7 @@ pub fn assign(data: ArrayView2<'_, f32>, centres: ArrayView2<'_, f32>) -> Result
     let data = standard(data);
     let centres = standard(centres);
     let points = Points::new(&data)?;
-    let centre_points =
-        Points::new(&centres).map_err(|e| Error::invalid(format!("centres: {e}")))?;
+    let centre_points = Points::new(&centres).map_err(|e| Error::invalid(format!("centres: {e}")))?;
     if centre_points.d != points.d {
         return Err(Error::invalid(format!(
             "k-means: centres have {} dimensions but the points have {}",
@@ -196,9 +186,8 @@ impl<'a> Points<'a> {
                 "k-means: {n} points of {d} dimensions is nothing to cluster"
             )));
         }
-        let data = array
-            .as_slice()
-            .ok_or_else(|| Error::invalid("k-means: internal error: data not contiguous"))?;
+        let data =
+            array.as_slice().ok_or_else(|| Error::invalid("k-means: internal error: data not contiguous"))?;
         if let Some(i) = data.par_iter().position_first(|v| !v.is_finite()) {
             return Err(Error::invalid(format!(
                 "k-means: point {} has {} in dimension {}; clustering needs finite values",
@@ -216,11 +205,7 @@ impl<'a> Points<'a> {
 
     /// Rows `start..start + len` as a matrix.
     fn block(&self, start: usize, len: usize) -> ArrayView2<'a, f32> {
-        matrix(
-            &self.data[start * self.d..(start + len) * self.d],
-            len,
-            self.d,
-        )
+        matrix(&self.data[start * self.d..(start + len) * self.d], len, self.d)
     }
 
     fn all(&self) -> ArrayView2<'a, f32> {
@@ -239,12 +224,8 @@ fn squared_distance(a: &[f32], b: &[f32]) -> f32 {
     const LANES: usize = 8;
     let mut acc = [0f32; LANES];
     let (a_chunks, b_chunks) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
-    let tail: f32 = a_chunks
-        .remainder()
-        .iter()
-        .zip(b_chunks.remainder())
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum();
+    let tail: f32 =
+        a_chunks.remainder().iter().zip(b_chunks.remainder()).map(|(x, y)| (x - y) * (x - y)).sum();
     for (x, y) in a_chunks.zip(b_chunks) {
         for l in 0..LANES {
             let t = x[l] - y[l];
@@ -255,12 +236,7 @@ fn squared_distance(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// The k-means++ seeds (see [`kmeans_plus_plus`]), one per row.
-fn plus_plus(
-    points: &Points,
-    k: usize,
-    rng: &mut ChaCha8Rng,
-    progress: &dyn Progress,
-) -> Array2<f32> {
+fn plus_plus(points: &Points, k: usize, rng: &mut ChaCha8Rng, progress: &dyn Progress) -> Array2<f32> {
     progress.start("k-means++", k as u64);
     let first = rng.random_range(0..points.n);
     let mut chosen = vec![first];
@@ -277,34 +253,24 @@ fn plus_plus(
         }
         let next = sample(&nearest_d, rng.random::<f64>() * total);
         let centre = points.row(next);
-        let gaps: Vec<f32> = chosen
-            .par_iter()
-            .map(|&c| squared_distance(points.row(c), centre))
-            .collect();
+        let gaps: Vec<f32> = chosen.par_iter().map(|&c| squared_distance(points.row(c), centre)).collect();
         let seed = chosen.len();
         chosen.push(next);
-        nearest_d
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(64)
-            .for_each(|(i, (d, s))| {
-                // Triangle inequality: a seed at least twice as far from x's nearest seed
-                // as x is cannot be nearer to x, so most rows need not be read at all once
-                // the clusters have seeds.
-                if gaps[*s] < PRUNE_MARGIN * *d {
-                    let e = squared_distance(points.row(i), centre);
-                    if e < *d {
-                        (*d, *s) = (e, seed);
-                    }
+        nearest_d.par_iter_mut().enumerate().with_min_len(64).for_each(|(i, (d, s))| {
+            // Triangle inequality: a seed at least twice as far from x's nearest seed
+            // as x is cannot be nearer to x, so most rows need not be read at all once
+            // the clusters have seeds.
+            if gaps[*s] < PRUNE_MARGIN * *d {
+                let e = squared_distance(points.row(i), centre);
+                if e < *d {
+                    (*d, *s) = (e, seed);
                 }
-            });
+            }
+        });
         progress.advance(1);
     }
     progress.finish();
-    let rows: Vec<f32> = chosen
-        .iter()
-        .flat_map(|&i| points.row(i).iter().copied())
-        .collect();
+    let rows: Vec<f32> = chosen.iter().flat_map(|&i| points.row(i).iter().copied()).collect();
     matrix(&rows, chosen.len(), points.d).to_owned()
 }
 
@@ -369,28 +335,23 @@ fn centre_view(centres: &Array2<f32>) -> Points<'_> {
 /// `‖x‖² − 2x·c + ‖c‖²` loses precision to cancellation.
 fn nearest(points: &Points, centres: &Points) -> Assignment {
     let origin = vec![0f32; centres.d];
-    let norms: Vec<f32> = (0..centres.n)
-        .map(|j| squared_distance(centres.row(j), &origin))
-        .collect();
+    let norms: Vec<f32> = (0..centres.n).map(|j| squared_distance(centres.row(j), &origin)).collect();
     let transposed = centres.all().reversed_axes();
     let mut labels = vec![0usize; points.n];
     let mut distances = vec![0f32; points.n];
-    labels
-        .par_chunks_mut(ROW_BLOCK)
-        .zip(distances.par_chunks_mut(ROW_BLOCK))
-        .enumerate()
-        .for_each(|(b, (labels, distances))| {
+    labels.par_chunks_mut(ROW_BLOCK).zip(distances.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(
+        |(b, (labels, distances))| {
             let start = b * ROW_BLOCK;
             let dots = points.block(start, labels.len()).dot(&transposed);
             for (i, (label, distance)) in labels.iter_mut().zip(distances).enumerate() {
                 let row = dots.row(i);
                 let score = |j: usize| norms[j] - 2.0 * row[j];
-                let best =
-                    (1..centres.n).fold(0, |best, j| if score(j) < score(best) { j } else { best });
+                let best = (1..centres.n).fold(0, |best, j| if score(j) < score(best) { j } else { best });
                 *label = best;
                 *distance = squared_distance(points.row(start + i), centres.row(best));
             }
-        });
+        },
+    );
     Assignment { labels, distances }
 }
 
@@ -423,40 +384,27 @@ fn reseed_empty(assignment: &mut Assignment, k: usize) -> usize {
 fn means(points: &Points, labels: &[usize], previous: &Array2<f32>) -> Array2<f32> {
     let k = previous.nrows();
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); k];
-    labels
-        .iter()
-        .enumerate()
-        .for_each(|(i, &l)| members[l].push(i));
+    labels.iter().enumerate().for_each(|(i, &l)| members[l].push(i));
     let mut centres = previous.clone();
     let slice = centres.as_slice_mut().expect("centres are built row-major");
-    slice
-        .par_chunks_mut(points.d)
-        .zip(&members)
-        .for_each(|(centre, members)| {
-            if members.is_empty() {
-                return;
-            }
-            let mut sum = vec![0f64; points.d];
-            for &i in members {
-                sum.iter_mut()
-                    .zip(points.row(i))
-                    .for_each(|(s, &x)| *s += x as f64);
-            }
-            let scale = 1.0 / members.len() as f64;
-            centre
-                .iter_mut()
-                .zip(&sum)
-                .for_each(|(c, &s)| *c = (s * scale) as f32);
-        });
+    slice.par_chunks_mut(points.d).zip(&members).for_each(|(centre, members)| {
+        if members.is_empty() {
+            return;
+        }
+        let mut sum = vec![0f64; points.d];
+        for &i in members {
+            sum.iter_mut().zip(points.row(i)).for_each(|(s, &x)| *s += x as f64);
+        }
+        let scale = 1.0 / members.len() as f64;
+        centre.iter_mut().zip(&sum).for_each(|(c, &s)| *c = (s * scale) as f32);
+    });
     centres
 }
 
 /// Total squared distance the centres moved.
 fn squared_shift(before: &Array2<f32>, after: &Array2<f32>) -> f64 {
     let (b, a) = (centre_view(before), centre_view(after));
-    (0..b.n)
-        .map(|j| squared_distance(b.row(j), a.row(j)) as f64)
-        .sum()
+    (0..b.n).map(|j| squared_distance(b.row(j), a.row(j)) as f64).sum()
 }
 
 /// Sum over dimensions of the data's variance (mean squared distance to the mean point).
@@ -466,9 +414,7 @@ fn total_variance(points: &Points) -> f64 {
         .map(|b| {
             let mut sum = vec![0f64; points.d];
             for i in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(points.n) {
-                sum.iter_mut()
-                    .zip(points.row(i))
-                    .for_each(|(s, &x)| *s += x as f64);
+                sum.iter_mut().zip(points.row(i)).for_each(|(s, &x)| *s += x as f64);
             }
             sum
         })
@@ -480,14 +426,7 @@ fn total_variance(points: &Points) -> f64 {
     mean.iter_mut().for_each(|m| *m /= points.n as f64);
     let per_point: Vec<f64> = (0..points.n)
         .into_par_iter()
-        .map(|i| {
-            points
-                .row(i)
-                .iter()
-                .zip(&mean)
-                .map(|(&x, m)| (x as f64 - m).powi(2))
-                .sum()
-        })
+        .map(|i| points.row(i).iter().zip(&mean).map(|(&x, m)| (x as f64 - m).powi(2)).sum())
         .collect();
     per_point.iter().sum::<f64>() / points.n as f64
 }
@@ -500,12 +439,7 @@ mod tests {
 
     /// Gaussian blobs: `per` points around each centre, std `spread`, interleaved so no
     /// cluster is a contiguous range. Returns the data and each point's blob.
-    fn blobs(
-        centres: &Array2<f32>,
-        per: usize,
-        spread: f32,
-        seed: u64,
-    ) -> (Array2<f32>, Vec<usize>) {
+    fn blobs(centres: &Array2<f32>, per: usize, spread: f32, seed: u64) -> (Array2<f32>, Vec<usize>) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (k, d) = centres.dim();
         let mut normal = || {
@@ -514,9 +448,7 @@ mod tests {
             (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
         };
         let truth: Vec<usize> = (0..per * k).map(|i| i % k).collect();
-        let data = Array2::from_shape_fn((per * k, d), |(i, j)| {
-            centres[[truth[i], j]] + spread * normal()
-        });
+        let data = Array2::from_shape_fn((per * k, d), |(i, j)| centres[[truth[i], j]] + spread * normal());
         (data, truth)
     }
 
@@ -536,38 +468,23 @@ mod tests {
         // Overlapping blobs have several local minima; both sides keep the best of 10 runs.
         let centres = uniform(8, 4, 6.0, 1);
         let (data, _) = blobs(&centres, 75, 1.0, 2);
-        let options = KMeansOptions {
-            runs: 10,
-            ..KMeansOptions::with_k(8)
-        };
+        let options = KMeansOptions { runs: 10, ..KMeansOptions::with_k(8) };
         let ours = kmeans(data.view(), &options, &Silent).unwrap();
         let dataset = linfa::DatasetBase::from(data.mapv(f64::from));
         let theirs = linfa_clustering::KMeans::params(8).fit(&dataset).unwrap();
         let linfa_inertia = inertia_of(&data, &theirs.centroids().mapv(|v| v as f32));
         assert!((ours.inertia - inertia_of(&data, &ours.centres)).abs() < 1e-6 * ours.inertia);
         let ratio = ours.inertia / linfa_inertia;
-        assert!(
-            (ratio - 1.0).abs() < 0.02,
-            "ours {} linfa {linfa_inertia}",
-            ours.inertia
-        );
+        assert!((ratio - 1.0).abs() < 0.02, "ours {} linfa {linfa_inertia}", ours.inertia);
     }
 
     #[test]
     fn same_bits_whatever_the_thread_count() {
         let centres = uniform(30, 40, 3.0, 3);
         let (data, _) = blobs(&centres, 40, 1.0, 4);
-        let options = KMeansOptions {
-            k: 25,
-            max_iterations: 20,
-            runs: 2,
-            ..KMeansOptions::default()
-        };
+        let options = KMeansOptions { k: 25, max_iterations: 20, runs: 2, ..KMeansOptions::default() };
         let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| kmeans(data.view(), &options, &Silent).unwrap())
         };
         let bits = |c: &Clustering| c.centres.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
@@ -589,11 +506,7 @@ mod tests {
         // Same partition up to renaming: each found cluster maps to exactly one planted one.
         let mut map = [None; 6];
         for (&f, &t) in found.labels.iter().zip(&truth) {
-            assert_eq!(
-                *map[f].get_or_insert(t),
-                t,
-                "cluster {f} mixes planted clusters"
-            );
+            assert_eq!(*map[f].get_or_insert(t), t, "cluster {f} mixes planted clusters");
         }
         for (f, t) in map.iter().enumerate() {
             let t = t.expect("every cluster has points");
@@ -617,10 +530,7 @@ mod tests {
 
     #[test]
     fn empty_clusters_take_the_farthest_point() {
-        let mut a = Assignment {
-            labels: vec![0, 0, 0, 2, 0],
-            distances: vec![1.0, 5.0, 3.0, 0.5, 5.0],
-        };
+        let mut a = Assignment { labels: vec![0, 0, 0, 2, 0], distances: vec![1.0, 5.0, 3.0, 0.5, 5.0] };
         assert_eq!(reseed_empty(&mut a, 4), 2);
         assert_eq!(a.labels, [0, 1, 0, 2, 3]);
         // A centre far from all points gets none; Lloyd's iterations give it the outlier.
@@ -646,30 +556,18 @@ mod tests {
     #[test]
     fn bad_inputs_are_rejected() {
         let data = uniform(10, 3, 1.0, 9);
-        let err =
-            |d: ArrayView2<f32>, o: KMeansOptions| kmeans(d, &o, &Silent).unwrap_err().to_string();
+        let err = |d: ArrayView2<f32>, o: KMeansOptions| kmeans(d, &o, &Silent).unwrap_err().to_string();
         assert!(err(data.view(), KMeansOptions::with_k(0)).contains("k must be at least 1"));
-        assert!(err(Array2::zeros((0, 3)).view(), KMeansOptions::with_k(2))
-            .contains("nothing to cluster"));
+        assert!(err(Array2::zeros((0, 3)).view(), KMeansOptions::with_k(2)).contains("nothing to cluster"));
         let mut bad = data.clone();
         bad[[4, 2]] = f32::INFINITY;
-        assert!(
-            err(bad.view(), KMeansOptions::with_k(2)).contains("point 4 has inf in dimension 2")
-        );
-        let negative = KMeansOptions {
-            tolerance: -1.0,
-            ..KMeansOptions::with_k(2)
-        };
+        assert!(err(bad.view(), KMeansOptions::with_k(2)).contains("point 4 has inf in dimension 2"));
+        let negative = KMeansOptions { tolerance: -1.0, ..KMeansOptions::with_k(2) };
         assert!(err(data.view(), negative).contains("tolerance"));
-        let no_runs = KMeansOptions {
-            runs: 0,
-            ..KMeansOptions::with_k(2)
-        };
+        let no_runs = KMeansOptions { runs: 0, ..KMeansOptions::with_k(2) };
         assert!(err(data.view(), no_runs).contains("runs must be at least 1"));
         let e = assign(data.view(), Array2::zeros((2, 4)).view()).unwrap_err();
-        assert!(e
-            .to_string()
-            .contains("centres have 4 dimensions but the points have 3"));
+        assert!(e.to_string().contains("centres have 4 dimensions but the points have 3"));
     }
 
     /// Textbook k-means++ drawing the same random numbers, without the pruning.
@@ -677,9 +575,8 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let row = |i: usize| data.row(i).to_vec();
         let mut chosen = vec![rng.random_range(0..data.nrows())];
-        let mut nearest: Vec<f32> = (0..data.nrows())
-            .map(|i| squared_distance(&row(i), &row(chosen[0])))
-            .collect();
+        let mut nearest: Vec<f32> =
+            (0..data.nrows()).map(|i| squared_distance(&row(i), &row(chosen[0]))).collect();
         while chosen.len() < k {
             let total: f64 = nearest.iter().map(|&d| d as f64).sum();
             let weights: Vec<(f32, usize)> = nearest.iter().map(|&d| (d, 0)).collect();

@@ -56,19 +56,16 @@ mod bench {
     fn bench_filtering_and_kmeans() {
         let threads = rayon::current_num_threads();
         let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let channels: Vec<Vec<f32>> = (0..3)
-            .map(|_| (0..64 * 64).map(|_| rng.random::<f32>()).collect())
-            .collect();
+        let channels: Vec<Vec<f32>> =
+            (0..3).map(|_| (0..64 * 64).map(|_| rng.random::<f32>()).collect()).collect();
         let planes: Vec<&[f32]> = channels.iter().map(Vec::as_slice).collect();
         let conv = BankConvolver::new(FilterBank::lm48());
         let t = Instant::now();
-        conv.filter_many(&planes, 64, 64, Padding::Mirror, &Silent)
-            .unwrap();
+        conv.filter_many(&planes, 64, 64, Padding::Mirror, &Silent).unwrap();
         let cold = t.elapsed().as_secs_f64() * 1e3;
         let warm = median_ms(
             || {
-                conv.filter_many(&planes, 64, 64, Padding::Mirror, &Silent)
-                    .unwrap();
+                conv.filter_many(&planes, 64, 64, Padding::Mirror, &Silent).unwrap();
             },
             21,
         );
@@ -99,12 +96,7 @@ mod bench {
         let t = Instant::now();
         let seeds = kmeans::kmeans_plus_plus(data.view(), k, 1).unwrap();
         let seeding = t.elapsed().as_secs_f64();
-        let options = KMeansOptions {
-            k,
-            max_iterations: 10,
-            tolerance: 0.0,
-            ..KMeansOptions::default()
-        };
+        let options = KMeansOptions { k, max_iterations: 10, tolerance: 0.0, ..KMeansOptions::default() };
         let t = Instant::now();
         let result = kmeans(data.view(), &options, &Silent).unwrap();
         let total = t.elapsed().as_secs_f64();

@@ -89,20 +89,34 @@ pub struct Analysis {
 impl AnalysisParams {
     /// Checks every parameter against the sample size; messages name the flag.
     pub fn validate(&self, width: usize, height: usize) -> Result<()> {
-        let positive = [("--textons", self.textons), ("--selected", self.selected), ("--levels", self.levels), ("--k", self.k), ("--basis", self.basis_rank)];
+        let positive = [
+            ("--textons", self.textons),
+            ("--selected", self.selected),
+            ("--levels", self.levels),
+            ("--k", self.k),
+            ("--basis", self.basis_rank),
+        ];
         for (flag, value) in positive {
             if value == 0 {
                 return Err(Error::invalid(format!("{flag} must be at least 1")));
             }
         }
         if self.neighborhood < 3 || self.neighborhood % 2 == 0 {
-            return Err(Error::invalid(format!("--neighborhood {} must be odd and at least 3", self.neighborhood)));
+            return Err(Error::invalid(format!(
+                "--neighborhood {} must be odd and at least 3",
+                self.neighborhood
+            )));
         }
         let need = self.neighborhood + 4;
         let sizes = level_sizes(width, height, self.levels);
         let (w, h) = sizes[sizes.len() - 1];
         if w.min(h) < need {
-            let fit = (1..=self.levels).take_while(|&l| { let (w, h) = level_sizes(width, height, l)[l - 1]; w.min(h) >= need }).count();
+            let fit = (1..=self.levels)
+                .take_while(|&l| {
+                    let (w, h) = level_sizes(width, height, l)[l - 1];
+                    w.min(h) >= need
+                })
+                .count();
             return Err(Error::invalid(format!(
                 "--levels {}: the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; use --levels {fit} or fewer",
                 self.levels,
@@ -123,7 +137,15 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
     let padding = Padding::from_tileable(params.tileable);
 
     let all = stack_rows(btf, &(0..btf.len()).collect::<Vec<_>>());
-    let selected = representatives(all.view(), (width, height), params.selected, &convolver, padding, params.seed, progress)?;
+    let selected = representatives(
+        all.view(),
+        (width, height),
+        params.selected,
+        &convolver,
+        padding,
+        params.seed,
+        progress,
+    )?;
     drop(all);
     timings.selection = started.elapsed();
 
@@ -134,7 +156,12 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
         if l > 0 {
             images = downsample_rows(&images, sizes[l - 1], params.tileable);
         }
-        let options = TextonOptions { textons: (params.textons >> (2 * l)).max(1), basis_rank: params.basis_rank, padding, seed: params.seed + l as u64 };
+        let options = TextonOptions {
+            textons: (params.textons >> (2 * l)).max(1),
+            basis_rank: params.basis_rank,
+            padding,
+            seed: params.seed + l as u64,
+        };
         let textons = level_textons(images.view(), (w, h), &convolver, &options, progress)?;
         timings.filtering += textons.timings.filtering;
         timings.kmeans += textons.timings.kmeans;
@@ -171,7 +198,11 @@ fn downsample_rows(images: &Array2<f32>, (width, height): (usize, usize), tileab
     Array2::from_shape_vec((rows.len(), cols), rows.concat()).unwrap_or_else(|_| Array2::zeros((0, 0)))
 }
 
-fn knn_lists(levels: Vec<LevelTextons>, params: &AnalysisParams, progress: &dyn Progress) -> Vec<AnalysisLevel> {
+fn knn_lists(
+    levels: Vec<LevelTextons>,
+    params: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Vec<AnalysisLevel> {
     let tables: Vec<Vec<f32>> = levels.iter().map(|l| distance_table(&l.gamma)).collect();
     let pyramid: Vec<Level> = levels
         .iter()

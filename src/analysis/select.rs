@@ -35,7 +35,8 @@ pub fn representatives(
     let basis = principal_images(images, &BasisOptions { seed, ..BasisOptions::default() })?;
     let coords = response_coordinates(&basis.components, (width, height), convolver, padding)?;
     let points = basis.coords.dot(&coords);
-    let clustering = kmeans(points.view(), &KMeansOptions { k: count, seed, ..KMeansOptions::default() }, progress)?;
+    let clustering =
+        kmeans(points.view(), &KMeansOptions { k: count, seed, ..KMeansOptions::default() }, progress)?;
     Ok(nearest_distinct(&points, &clustering.centres))
 }
 

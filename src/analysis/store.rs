@@ -105,7 +105,8 @@ pub fn write(
     let out = staged.path();
     let (w, h) = (btf.width(), btf.height());
     npy::write(&out.join("images.npy"), &[btf.len(), h, w, 3], btf.pixels())?;
-    let directions: Vec<f32> = btf.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
+    let directions: Vec<f32> =
+        btf.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
     npy::write(&out.join("directions.npy"), &[btf.len(), 4], &directions)?;
     let mut levels = Vec::new();
     for (l, level) in analysis.levels.iter().enumerate() {
@@ -130,8 +131,16 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
     };
     let k = level.knn.len() / (w * h).max(1);
     npy::write(&out.join(&files.textons), &[h, w], &t.map.labels)?;
-    npy::write(&out.join(&files.gamma), &[t.gamma.nrows(), t.gamma.ncols()], &t.gamma.iter().copied().collect::<Vec<_>>())?;
-    npy::write(&out.join(&files.embedding), &[t.embedding.nrows(), t.embedding.ncols()], &t.embedding.iter().copied().collect::<Vec<_>>())?;
+    npy::write(
+        &out.join(&files.gamma),
+        &[t.gamma.nrows(), t.gamma.ncols()],
+        &t.gamma.iter().copied().collect::<Vec<_>>(),
+    )?;
+    npy::write(
+        &out.join(&files.embedding),
+        &[t.embedding.nrows(), t.embedding.ncols()],
+        &t.embedding.iter().copied().collect::<Vec<_>>(),
+    )?;
     npy::write(&out.join(&files.knn), &[h, w, k], &level.knn)?;
     if let (Some(name), Some(lists)) = (&files.knn_two_level, &level.knn_two_level) {
         npy::write(&out.join(name), &[h, w, k], lists)?;
@@ -148,7 +157,13 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
     })
 }
 
-fn manifest(analysis: &Analysis, btf: &Btf, source_path: &Path, crop: Option<[u32; 4]>, levels: Vec<LevelInfo>) -> Manifest {
+fn manifest(
+    analysis: &Analysis,
+    btf: &Btf,
+    source_path: &Path,
+    crop: Option<[u32; 4]>,
+    levels: Vec<LevelInfo>,
+) -> Manifest {
     let p = &analysis.params;
     let t = &analysis.timings;
     let filters: Vec<serde_json::Value> = p
@@ -194,9 +209,13 @@ fn manifest(analysis: &Analysis, btf: &Btf, source_path: &Path, crop: Option<[u3
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     let path = dir.join(MANIFEST);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let manifest: Manifest = serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("invalid analysis manifest: {e}")))?;
+    let manifest: Manifest = serde_json::from_str(&text)
+        .map_err(|e| Error::format(&path, format!("invalid analysis manifest: {e}")))?;
     if manifest.format != "btfsynth-analysis" {
-        return Err(Error::format(&path, format!("format is '{}', not 'btfsynth-analysis'", manifest.format)));
+        return Err(Error::format(
+            &path,
+            format!("format is '{}', not 'btfsynth-analysis'", manifest.format),
+        ));
     }
     Ok(manifest)
 }
@@ -263,6 +282,13 @@ fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
 }
 
 fn save_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
-    image::save_buffer_with_format(path, rgb, width as u32, height as u32, image::ExtendedColorType::Rgb8, image::ImageFormat::Png)
-        .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+    image::save_buffer_with_format(
+        path,
+        rgb,
+        width as u32,
+        height as u32,
+        image::ExtendedColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
 }

@@ -61,14 +61,19 @@ pub fn level_textons(
 ) -> Result<LevelTextons> {
     let mut timings = StageTimes::default();
     let started = Instant::now();
-    let basis_options = BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() };
+    let basis_options =
+        BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() };
     let basis = principal_images(images, &basis_options)?;
     let features = texton_features(&basis, width, height, convolver, options.padding)?;
     timings.filtering = started.elapsed();
 
     let started = Instant::now();
     let k = options.textons.min(width * height);
-    let clustering = kmeans(features.view(), &KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() }, progress)?;
+    let clustering = kmeans(
+        features.view(),
+        &KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() },
+        progress,
+    )?;
     timings.kmeans = started.elapsed();
     let textons = clustering.centres.nrows();
     if textons >= u16::MAX as usize {

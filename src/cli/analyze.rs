@@ -77,9 +77,22 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
     let sizes: Vec<String> = analysis
         .levels
         .iter()
-        .map(|l| format!("{}x{}: {} textons, d={}", l.textons.map.width, l.textons.map.height, l.textons.textons, l.textons.embedding.ncols()))
+        .map(|l| {
+            format!(
+                "{}x{}: {} textons, d={}",
+                l.textons.map.width,
+                l.textons.map.height,
+                l.textons.textons,
+                l.textons.embedding.ncols()
+            )
+        })
         .collect();
-    eprintln!("analysed {} images ({} selected) into {}", stack.len(), analysis.selected.len(), written.display());
+    eprintln!(
+        "analysed {} images ({} selected) into {}",
+        stack.len(),
+        analysis.selected.len(),
+        written.display()
+    );
     eprintln!("  levels    {}", sizes.join("; "));
     eprintln!(
         "  time      {:.1} s (selection {:.1}, filtering {:.1}, k-means {:.1}, Γ {:.1}, kNN {:.1})",

@@ -112,9 +112,29 @@ pub fn analysis_json(m: &Manifest) -> serde_json::Value {
 
 fn print_analysis(path: &Path, m: &Manifest) {
     println!("{}: texton analysis of {}", path.display(), m.source.path);
-    println!("  sample  {} x {} pixels, {} images, {} selected", m.width, m.height, m.images, m.selected.len());
+    println!(
+        "  sample  {} x {} pixels, {} images, {} selected",
+        m.width,
+        m.height,
+        m.images,
+        m.selected.len()
+    );
     for (i, l) in m.levels.iter().enumerate() {
-        println!("  level {i} {} x {}: {} textons, embedding d = {}, basis {} images ({:.2}% of variance)", l.width, l.height, l.textons, l.embedding_dims, l.basis_rank, 100.0 * l.basis_energy);
+        println!(
+            "  level {i} {} x {}: {} textons, embedding d = {}, basis {} images ({:.2}% of variance)",
+            l.width,
+            l.height,
+            l.textons,
+            l.embedding_dims,
+            l.basis_rank,
+            100.0 * l.basis_energy
+        );
     }
-    println!("  kNN     k = {}, {}x{} neighbourhoods{}", m.k, m.params.neighborhood, m.params.neighborhood, if m.params.tileable { ", tileable" } else { "" });
+    println!(
+        "  kNN     k = {}, {}x{} neighbourhoods{}",
+        m.k,
+        m.params.neighborhood,
+        m.params.neighborhood,
+        if m.params.tileable { ", tileable" } else { "" }
+    );
 }
