@@ -23,8 +23,10 @@ pub mod analysis;
 pub mod btf;
 pub mod cli;
 pub mod error;
+pub mod eval;
 pub mod fsutil;
 pub mod progress;
 pub mod seeded;
+pub mod synth;
 
 pub use error::{Error, Result};

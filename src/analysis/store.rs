@@ -262,7 +262,9 @@ fn write_previews(out: &Path, analysis: &Analysis) -> Result<()> {
     save_png(&out.join("filters.png"), sheet.width, sheet.height, &sheet.pixels)
 }
 
-fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
+/// One colour per texton: the embedding's first three components scaled to [0, 1] as RGB,
+/// so similar textons get similar colours.
+pub fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
     let dims = embedding.ncols().min(3);
     let range: Vec<(f32, f32)> = (0..dims)
         .map(|c| embedding.column(c).iter().fold((f32::MAX, f32::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v))))
@@ -281,7 +283,8 @@ fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
         .collect()
 }
 
-fn save_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+/// Writes 8-bit RGB as PNG.
+pub fn save_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
     image::save_buffer_with_format(
         path,
         rgb,

@@ -2,9 +2,11 @@
 
 mod analyze;
 mod demo;
+mod eval;
 mod gen;
 mod info;
 mod progress;
+mod synth;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -36,6 +38,10 @@ enum Command {
     Gen(gen::GenArgs),
     /// Texton analysis of a stack: filter bank, textons, Γ, pyramid, kNN lists (Tong §4, §5.2).
     Analyze(analyze::AnalyzeArgs),
+    /// Synthesize a texton map from an analysis (plane mode: a regular grid).
+    Synth(synth::SynthArgs),
+    /// Quality of a synthesized result: texton χ², energy, coherence.
+    Eval(eval::EvalArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -57,6 +63,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Gen(args) => gen::run(args, &bars),
         Command::Analyze(args) => analyze::run(args, &bars),
+        Command::Synth(args) => synth::run(args, &bars),
+        Command::Eval(args) => eval::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };

@@ -1,0 +1,92 @@
+//! Quality of a synthesized texton map against its sample: texton-histogram χ², energy and
+//! coherence.
+
+use crate::synth::engine::{distance, terms, State};
+use crate::synth::sample::SampleLevel;
+use crate::synth::target::TargetLevel;
+use serde::Serialize;
+
+/// The three measures `btfsynth eval` reports.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Quality {
+    /// ½ Σ (p − q)² / (p + q) between the result's and the sample's texton frequencies: 0 for
+    /// identical histograms, 1 for disjoint ones.
+    pub chi2: f64,
+    /// Mean per-vertex distance, through Γ, between the vertex's neighbourhood and the sample
+    /// neighbourhood at its coordinate (lower is better; 0 = every neighbourhood copied whole).
+    pub energy: f64,
+    /// Mean number of vertices per patch copied contiguously from the sample.
+    pub coherence: f64,
+}
+
+/// χ² distance between two label histograms over `textons` bins.
+pub fn chi2(result: &[u16], sample: &[u16], textons: usize) -> f64 {
+    let histogram = |labels: &[u16]| {
+        let mut h = vec![0.0f64; textons];
+        for &l in labels {
+            if let Some(bin) = h.get_mut(l as usize) {
+                *bin += 1.0;
+            }
+        }
+        let n = labels.len().max(1) as f64;
+        h.iter_mut().for_each(|v| *v /= n);
+        h
+    };
+    let (p, q) = (histogram(result), histogram(sample));
+    0.5 * p.iter().zip(&q).filter(|(a, b)| *a + *b > 0.0).map(|(a, b)| (a - b).powi(2) / (a + b)).sum::<f64>()
+}
+
+/// Mean neighbourhood distance of every vertex to the sample at its coordinate.
+pub fn energy(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f64 {
+    let total: f64 = (0..level.vertices)
+        .map(|v| {
+            let own = terms(level.slots_of(v), &state.labels, sample, None);
+            let [x, y] = state.uv[v];
+            distance(&own, sample, level.template, (x as i64, y as i64), f32::INFINITY) as f64
+        })
+        .sum();
+    total / level.vertices.max(1) as f64
+}
+
+/// Mean size of the groups of grid vertices connected through neighbours whose coordinates
+/// differ by exactly their grid offset (wrapping on tileable samples).
+pub fn grid_coherence(width: usize, height: usize, state: &State, sample: &SampleLevel) -> f64 {
+    let mut parent: Vec<usize> = (0..width * height).collect();
+    fn root(parent: &mut [usize], mut v: usize) -> usize {
+        while parent[v] != v {
+            parent[v] = parent[parent[v]];
+            v = parent[v];
+        }
+        v
+    }
+    let follows = |a: usize, b: usize, dx: i64, dy: i64| {
+        let (ua, ub) = (state.uv[a], state.uv[b]);
+        let expect = sample.bring_inside(ua[0] as i64 + dx, ua[1] as i64 + dy);
+        expect == (ub[0] as usize, ub[1] as usize)
+    };
+    for y in 0..height {
+        for x in 0..width {
+            let v = y * width + x;
+            for (dx, dy, ok) in [(1, 0, x + 1 < width), (0, 1, y + 1 < height)] {
+                let n = (y + dy as usize) * width + x + dx as usize;
+                if ok && follows(v, n, dx, dy) {
+                    let (a, b) = (root(&mut parent, v), root(&mut parent, n));
+                    parent[a.max(b)] = a.min(b);
+                }
+            }
+        }
+    }
+    let components = (0..width * height).filter(|&v| root(&mut parent, v) == v).count();
+    (width * height) as f64 / components.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chi2_is_zero_for_equal_and_one_for_disjoint_histograms() {
+        assert_eq!(chi2(&[0, 1, 1, 2], &[1, 2, 0, 1], 3), 0.0);
+        assert!((chi2(&[0, 0], &[1, 1], 2) - 1.0).abs() < 1e-12);
+    }
+}

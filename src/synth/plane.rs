@@ -1,0 +1,125 @@
+//! Plane mode: synthesis on a regular W×H grid, the 2D case used to compare with texture
+//! synthesis tools. Output: a directory with the maps as arrays and images.
+//!
+//! | file | content |
+//! |---|---|
+//! | `plane.json` | the analysis used, the size, the parameters and the per-level report |
+//! | `labels.npy` | u16 [h, w] texton labels (level 0) |
+//! | `uv.npy` | u32 [h, w, 2] sample coordinates (x, y) in texels |
+//! | `textons.png` | the labels in the analysis' false colours |
+//! | `uv.png` | x and y as red and green, scaled to the sample size |
+//! | `result.png` | the sample image closest to normal view and light, copied through `uv` |
+
+use super::engine::State;
+use super::target::grid_levels;
+use super::{synthesize, LevelReport, Sample, SynthParams};
+use crate::analysis::knn::parent_size;
+use crate::analysis::npy;
+use crate::analysis::store::{false_colours, save_png};
+use crate::btf::image_io::linear_to_srgb8;
+use crate::fsutil::{write_file_atomic, StagedDir};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use half::f16;
+use std::path::{Path, PathBuf};
+
+/// The manifest of a plane result.
+pub const MANIFEST: &str = "plane.json";
+
+/// A synthesized plane.
+pub struct PlaneResult {
+    pub width: usize,
+    pub height: usize,
+    pub state: State,
+    pub reports: Vec<LevelReport>,
+}
+
+/// Synthesizes a `width × height` plane from `sample`.
+pub fn synthesize_plane(sample: &Sample, (width, height): (usize, usize), params: &SynthParams, progress: &dyn Progress) -> Result<PlaneResult> {
+    if width == 0 || height == 0 || width * height > 1 << 26 {
+        return Err(Error::invalid(format!("--plane {width}x{height}: sides must be at least 1 and the area at most 2^26")));
+    }
+    let targets = grid_levels(width, height, sample.levels.len(), params.neighborhood, parent_size(params.neighborhood));
+    let (state, reports) = synthesize(&targets, sample, params, progress)?;
+    Ok(PlaneResult { width, height, state, reports })
+}
+
+/// Writes `result` (synthesized from the analysis in `analysis_dir`) into the directory `out`.
+pub fn write_plane(result: &PlaneResult, analysis_dir: &Path, params_json: serde_json::Value, out: &Path, overwrite: bool) -> Result<PathBuf> {
+    let staged = StagedDir::new(out, overwrite)?;
+    let dir = staged.path();
+    let (w, h) = (result.width, result.height);
+    npy::write(&dir.join("labels.npy"), &[h, w], &result.state.labels)?;
+    let uv: Vec<u32> = result.state.uv.iter().flat_map(|&[x, y]| [x as u32, y as u32]).collect();
+    npy::write(&dir.join("uv.npy"), &[h, w, 2], &uv)?;
+
+    let embedding: npy::NpyArray<f32> = npy::read(&analysis_dir.join("level0_embedding.npy"))?;
+    let dims = embedding.shape.get(1).copied().unwrap_or(0);
+    let embedding = ndarray::Array2::from_shape_vec((embedding.shape[0], dims), embedding.data)
+        .map_err(|e| Error::format(analysis_dir.join("level0_embedding.npy"), e.to_string()))?;
+    let colours = false_colours(&embedding);
+    let rgb: Vec<u8> = result.state.labels.iter().flat_map(|&l| colours.get(l as usize).copied().unwrap_or([0; 3])).collect();
+    save_png(&dir.join("textons.png"), w, h, &rgb)?;
+
+    let (sw, sh, image) = closest_to_normal_image(analysis_dir)?;
+    let uv_rgb: Vec<u8> = result
+        .state
+        .uv
+        .iter()
+        .flat_map(|&[x, y]| [(x as usize * 255 / sw.max(2).saturating_sub(1)) as u8, (y as usize * 255 / sh.max(2).saturating_sub(1)) as u8, 0])
+        .collect();
+    save_png(&dir.join("uv.png"), w, h, &uv_rgb)?;
+    let copied: Vec<u8> = result
+        .state
+        .uv
+        .iter()
+        .flat_map(|&[x, y]| {
+            let o = (y as usize * sw + x as usize) * 3;
+            [0, 1, 2].map(|c| linear_to_srgb8(image.get(o + c).map_or(0.0, |v| v.to_f32())))
+        })
+        .collect();
+    save_png(&dir.join("result.png"), w, h, &copied)?;
+
+    let manifest = serde_json::json!({
+        "kind": "plane",
+        "analysis": analysis_dir.display().to_string(),
+        "width": w,
+        "height": h,
+        "params": params_json,
+        "levels": result.reports,
+    });
+    let text = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    write_file_atomic(&dir.join(MANIFEST), text.as_bytes())?;
+    staged.commit()
+}
+
+/// The sample image whose view and light are nearest the normal (θ_light + θ_view least).
+fn closest_to_normal_image(analysis_dir: &Path) -> Result<(usize, usize, Vec<f16>)> {
+    let directions: npy::NpyArray<f32> = npy::read(&analysis_dir.join("directions.npy"))?;
+    let images: npy::NpyArray<f16> = npy::read(&analysis_dir.join("images.npy"))?;
+    let bad = || Error::format(analysis_dir.join("images.npy"), "expected shape [n, h, w, 3]");
+    let [n, h, w, 3] = images.shape[..] else { return Err(bad()) };
+    let best = (0..n)
+        .min_by(|&a, &b| {
+            let key = |i: usize| directions.data.get(4 * i).copied().unwrap_or(0.0) + directions.data.get(4 * i + 2).copied().unwrap_or(0.0);
+            key(a).total_cmp(&key(b))
+        })
+        .ok_or_else(bad)?;
+    let per = w * h * 3;
+    Ok((w, h, images.data[best * per..(best + 1) * per].to_vec()))
+}
+
+/// Reads a plane result's labels and coordinates back.
+pub fn read_plane(dir: &Path) -> Result<(usize, usize, State, serde_json::Value)> {
+    let path = dir.join(MANIFEST);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let manifest: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::format(&path, e.to_string()))?;
+    let labels: npy::NpyArray<u16> = npy::read(&dir.join("labels.npy"))?;
+    let uv: npy::NpyArray<u32> = npy::read(&dir.join("uv.npy"))?;
+    let [h, w] = labels.shape[..] else { return Err(Error::format(dir.join("labels.npy"), "expected shape [h, w]")) };
+    if uv.shape != [h, w, 2] {
+        return Err(Error::format(dir.join("uv.npy"), format!("shape {:?} does not match labels [{h}, {w}]", uv.shape)));
+    }
+    let uv = uv.data.chunks_exact(2).map(|c| [c[0] as i32, c[1] as i32]).collect();
+    Ok((w, h, State { labels: labels.data, uv }, manifest))
+}
