@@ -131,4 +131,18 @@ mod tests {
         assert!(e.ncols() <= 3, "d = {}", e.ncols());
         assert!(spectral_embedding(&g, 0.0).is_err());
     }
+
+    #[test]
+    fn gamma_distances_equal_explicit_appearance_distances() {
+        let a = random_appearance(6, 9);
+        let table = distance_table(&gamma_with_default(&a));
+        let mean = a.mean_axis(Axis(0)).unwrap();
+        let row = |i: usize| if i < 6 { a.row(i).to_owned() } else { mean.clone() };
+        for i in 0..7 {
+            for j in 0..7 {
+                let d: f32 = (&row(i) - &row(j)).iter().map(|v| v * v).sum();
+                assert!((table[i * 7 + j] - d).abs() < 1e-4 * d.max(1.0), "({i},{j})");
+            }
+        }
+    }
 }
