@@ -15,7 +15,18 @@ fn analysed(dir: &std::path::Path) -> std::path::PathBuf {
     let png = dir.join("checker.png");
     checker(&png);
     let out = dir.join("analysis");
-    let r = btfsynth(&["-q", "analyze", png.to_str().unwrap(), "--tileable", "--textons", "16", "--levels", "2", "-o", out.to_str().unwrap()]);
+    let r = btfsynth(&[
+        "-q",
+        "analyze",
+        png.to_str().unwrap(),
+        "--tileable",
+        "--textons",
+        "16",
+        "--levels",
+        "2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     out
 }
@@ -32,7 +43,17 @@ fn a_tileable_periodic_sample_is_reproduced() {
     let analysis = analysed(dir.path());
     let plane = dir.path().join("plane");
     let report = dir.path().join("report.json");
-    let r = btfsynth(&["-q", "synth", analysis.to_str().unwrap(), "--plane", "64x48", "-o", plane.to_str().unwrap(), "--report", report.to_str().unwrap()]);
+    let r = btfsynth(&[
+        "-q",
+        "synth",
+        analysis.to_str().unwrap(),
+        "--plane",
+        "64x48",
+        "-o",
+        plane.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let q = eval(&analysis, &plane);
     assert!(q["chi2"].as_f64().unwrap() < 0.01, "{q}");
@@ -53,11 +74,33 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
     let a = dir.path().join("a");
-    let r = btfsynth(&["-q", "analyze", analysis, "--crop", "0,0,48,48", "--textons", "32", "--levels", "2", "-o", a.to_str().unwrap()]);
+    let r = btfsynth(&[
+        "-q",
+        "analyze",
+        analysis,
+        "--crop",
+        "0,0,48,48",
+        "--textons",
+        "32",
+        "--levels",
+        "2",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let run = |name: &str, seed: &str| {
         let out = dir.path().join(name);
-        let r = btfsynth(&["-q", "synth", a.to_str().unwrap(), "--plane", "40x40", "--seed", seed, "-o", out.to_str().unwrap()]);
+        let r = btfsynth(&[
+            "-q",
+            "synth",
+            a.to_str().unwrap(),
+            "--plane",
+            "40x40",
+            "--seed",
+            seed,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap())
     };
@@ -73,11 +116,21 @@ fn bad_synthesis_inputs_leave_nothing_behind() {
     let o = dir.path().join("out");
     let o = o.to_str().unwrap();
     let missing = dir.path().join("nothing");
-    assert_one_line_error(&btfsynth(&["synth", missing.to_str().unwrap(), "--plane", "8x8", "-o", o]), "nothing");
+    assert_one_line_error(
+        &btfsynth(&["synth", missing.to_str().unwrap(), "--plane", "8x8", "-o", o]),
+        "nothing",
+    );
     assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--k", "99", "-o", o]), "--k 99");
     assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--levels", "5", "-o", o]), "--levels 5");
-    assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--preset", "nope", "-o", o]), "unknown preset");
+    assert_one_line_error(
+        &btfsynth(&["synth", a, "--plane", "8x8", "--preset", "nope", "-o", o]),
+        "unknown preset",
+    );
     assert_eq!(btfsynth(&["synth", a, "--plane", "0x8", "-o", o]).status.code(), Some(2));
     assert_one_line_error(&btfsynth(&["eval", a, missing.to_str().unwrap()]), "not a plane result");
-    assert_eq!(entries(dir.path()), vec!["analysis".to_string(), "checker.png".to_string()], "nothing written");
+    assert_eq!(
+        entries(dir.path()),
+        vec!["analysis".to_string(), "checker.png".to_string()],
+        "nothing written"
+    );
 }

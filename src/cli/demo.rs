@@ -4,9 +4,11 @@ use super::progress::Bars;
 use crate::analysis::pipeline::{analyze, AnalysisParams};
 use crate::analysis::store;
 use crate::btf::gen::{generate, GenParams, MaterialKind};
-use crate::btf::{load, write_stack, DirectionSet, ImageFormat, LoadOptions};
+use crate::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptions};
+use crate::synth::plane::{synthesize_plane, write_plane};
+use crate::synth::{Preset, Sample, Search, SynthParams};
 use anyhow::Result;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct DemoArgs {
@@ -31,36 +33,80 @@ fn data_dir(given: Option<PathBuf>) -> PathBuf {
 
 pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     std::fs::create_dir_all(&args.output).map_err(|e| crate::Error::io(&args.output, e))?;
-    let stack_dir = args.output.join("stack");
-    eprintln!("[1/3] generating a 48x48 pebbles BTF on a 16-direction dome (256 images)");
-    let params = GenParams { size: 48, directions: DirectionSet::Grid(16), ..GenParams::default() };
+    let out = |name: &str| args.output.join(name);
+    eprintln!("[1/4] generating a 64x64 pebbles BTF on a 16-direction dome (256 images)");
+    let params = GenParams { size: 64, directions: DirectionSet::Grid(16), ..GenParams::default() };
     let stack = generate(MaterialKind::Pebbles, &params, bars)?;
     let source = serde_json::json!({
-        "generator": "btfsynth demo", "kind": "pebbles", "size": 48, "directions": "grid:16", "seed": 0
+        "generator": "btfsynth demo", "kind": "pebbles", "size": 64, "directions": "grid:16", "seed": 0
     });
-    write_stack(&stack, &stack_dir, ImageFormat::Exr, Some(source), true, bars)?;
-    let reloaded = load(&stack_dir, &LoadOptions::default(), bars)?;
-    println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&stack_dir, &reloaded))?);
+    write_stack(&stack, &out("stack"), ImageFormat::Exr, Some(source), true, bars)?;
+    let reloaded = load(&out("stack"), &LoadOptions::default(), bars)?;
+    println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&out("stack"), &reloaded))?);
 
-    let analysis_dir = args.output.join("analysis");
-    eprintln!("[2/3] texton analysis: 200 textons, 3 levels, k = 11");
-    let analysis_params = AnalysisParams { textons: 200, ..AnalysisParams::default() };
-    let analysis = analyze(&reloaded, &analysis_params, bars)?;
-    store::write(&analysis, &reloaded, &stack_dir, None, &analysis_dir, true)?;
-    println!(
-        "{}",
-        serde_json::to_string_pretty(&super::info::analysis_json(&store::read_manifest(&analysis_dir)?))?
-    );
+    eprintln!("[2/4] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
+    analyse_and_synthesize(
+        &reloaded,
+        &out("stack"),
+        AnalysisParams { textons: 200, ..AnalysisParams::default() },
+        &out("analysis"),
+        &out("plane"),
+        bars,
+    )?;
 
     let texture = data_dir(args.data).join("gravel-128.png");
-    eprintln!("[3/3] reading the bundled photograph {} as a one-image BTF", texture.display());
+    eprintln!("[3/4] reading the bundled photograph {} as a one-image BTF", texture.display());
     let photo = load(&texture, &LoadOptions::default(), bars)?;
     println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&texture, &photo))?);
+    eprintln!("[4/4] texture synthesis from the photograph: analysis and a 192x192 plane");
+    analyse_and_synthesize(
+        &photo,
+        &texture,
+        AnalysisParams::default(),
+        &out("gravel-analysis"),
+        &out("gravel-plane"),
+        bars,
+    )?;
     eprintln!(
-        "done: see {}/ (btf.json lists every image), {}/level0_textons.png (the texton map) and {}/filters.png",
-        stack_dir.display(),
-        analysis_dir.display(),
-        analysis_dir.display()
+        "done: look at {}/result.png (the photograph, resynthesized), {}/level0_textons.png \
+         (a BTF's texton map) and {}/btf.json",
+        out("gravel-plane").display(),
+        out("analysis").display(),
+        out("stack").display()
     );
+    Ok(())
+}
+
+/// Analyses `stack` into `analysis_dir`, prints its description, and synthesizes a 192×192
+/// plane from it into `plane_dir`.
+fn analyse_and_synthesize(
+    stack: &Btf,
+    source: &Path,
+    params: AnalysisParams,
+    analysis_dir: &Path,
+    plane_dir: &Path,
+    bars: &Bars,
+) -> Result<()> {
+    let analysis = analyze(stack, &params, bars)?;
+    store::write(&analysis, stack, source, None, analysis_dir, true)?;
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&super::info::analysis_json(&store::read_manifest(analysis_dir)?))?
+    );
+    let sample = Sample::open(analysis_dir, params.levels)?;
+    let synth = SynthParams {
+        preset: Preset::tong2002(),
+        search: Search::KCoherence { k: params.k },
+        neighborhood: 5,
+        seed: 0,
+    };
+    let plane = synthesize_plane(&sample, (192, 192), &synth, bars)?;
+    write_plane(
+        &plane,
+        analysis_dir,
+        serde_json::json!({"preset": "tong2002", "neighborhood": 5, "seed": 0}),
+        plane_dir,
+        true,
+    )?;
     Ok(())
 }

@@ -21,15 +21,25 @@ pub struct EvalArgs {
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
     if !args.result.join(MANIFEST).is_file() {
-        bail!("{}: not a plane result (no {MANIFEST}); eval reads the output of `synth --plane`", args.result.display());
+        bail!(
+            "{}: not a plane result (no {MANIFEST}); eval reads the output of `synth --plane`",
+            args.result.display()
+        );
     }
     let (width, height, state, manifest) = read_plane(&args.result)?;
     let sample = Sample::open(&args.analysis, 1)?;
     let level = &sample.levels[0];
     if state.labels.iter().any(|&l| l as usize >= level.textons)
-        || state.uv.iter().any(|&[x, y]| x < 0 || y < 0 || x as usize >= level.width || y as usize >= level.height)
+        || state
+            .uv
+            .iter()
+            .any(|&[x, y]| x < 0 || y < 0 || x as usize >= level.width || y as usize >= level.height)
     {
-        bail!("{}: its labels or coordinates do not fit the analysis {}", args.result.display(), args.analysis.display());
+        bail!(
+            "{}: its labels or coordinates do not fit the analysis {}",
+            args.result.display(),
+            args.analysis.display()
+        );
     }
     let neighborhood = manifest["params"]["neighborhood"].as_u64().unwrap_or(5) as usize;
     let grid = grid_levels(width, height, 1, neighborhood, 3);
@@ -43,7 +53,10 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
     } else {
         println!("{}: {width}x{height} plane from {}", args.result.display(), args.analysis.display());
         println!("  chi2       {:.4}  (texton histograms; 0 = identical)", quality.chi2);
-        println!("  energy     {:.4}  (mean neighbourhood distance through Γ; lower is better)", quality.energy);
+        println!(
+            "  energy     {:.4}  (mean neighbourhood distance through Γ; lower is better)",
+            quality.energy
+        );
         println!("  coherence  {:.1}  (mean vertices per contiguously copied patch)", quality.coherence);
     }
     Ok(())

@@ -81,7 +81,12 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let params = SynthParams { preset: Preset::by_name(&args.preset)?, search, neighborhood: args.neighborhood, seed: args.seed };
+    let params = SynthParams {
+        preset: Preset::by_name(&args.preset)?,
+        search,
+        neighborhood: args.neighborhood,
+        seed: args.seed,
+    };
     let result = synthesize_plane(&sample, args.plane, &params, bars)?;
     let params_json = serde_json::json!({
         "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,

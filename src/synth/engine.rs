@@ -55,18 +55,25 @@ pub(crate) struct Term {
 
 /// The terms of `slots` under `labels`. With `known`, vertices not yet synthesized are left
 /// out (their weight goes to the others); a pixel with none known is skipped (count 0).
-pub(crate) fn terms(slots: &[Slot], labels: &[u16], sample: &SampleLevel, known: Option<&[bool]>) -> Vec<Term> {
+pub(crate) fn terms(
+    slots: &[Slot],
+    labels: &[u16],
+    sample: &SampleLevel,
+    known: Option<&[bool]>,
+) -> Vec<Term> {
     slots
         .iter()
         .map(|slot| {
-            let mut term = Term { textons: [sample.default_texton(); 3], weights: [0.0; 3], count: 0, ss: 0.0 };
+            let mut term =
+                Term { textons: [sample.default_texton(); 3], weights: [0.0; 3], count: 0, ss: 0.0 };
             let mut total = 0.0;
             for a in 0..3 {
                 let (vertex, weight) = (slot.vertices[a], slot.weights[a]);
                 if weight == 0.0 || (vertex != OUTSIDE && known.is_some_and(|k| !k[vertex as usize])) {
                     continue;
                 }
-                term.textons[term.count] = if vertex == OUTSIDE { sample.default_texton() } else { labels[vertex as usize] };
+                term.textons[term.count] =
+                    if vertex == OUTSIDE { sample.default_texton() } else { labels[vertex as usize] };
                 term.weights[term.count] = weight;
                 term.count += 1;
                 total += weight;
@@ -76,7 +83,8 @@ pub(crate) fn terms(slots: &[Slot], labels: &[u16], sample: &SampleLevel, known:
             }
             for a in 0..term.count {
                 for b in 0..term.count {
-                    term.ss += term.weights[a] * term.weights[b] * sample.dot(term.textons[a], term.textons[b]);
+                    term.ss +=
+                        term.weights[a] * term.weights[b] * sample.dot(term.textons[a], term.textons[b]);
                 }
             }
             term
@@ -86,7 +94,13 @@ pub(crate) fn terms(slots: &[Slot], labels: &[u16], sample: &SampleLevel, known:
 
 /// Σ over template pixels of ‖s − t‖² against the sample neighbourhood centred at (px, py);
 /// stops early once it exceeds `bound`.
-pub(crate) fn distance(terms: &[Term], sample: &SampleLevel, template: usize, (px, py): (i64, i64), bound: f32) -> f32 {
+pub(crate) fn distance(
+    terms: &[Term],
+    sample: &SampleLevel,
+    template: usize,
+    (px, py): (i64, i64),
+    bound: f32,
+) -> f32 {
     let r = (template / 2) as i64;
     let mut d = 0.0;
     for (i, term) in terms.iter().enumerate().filter(|(_, t)| t.count > 0) {
@@ -121,7 +135,14 @@ pub struct PassContext<'a> {
 
 /// One pass over `level`: every vertex takes the candidate pixel whose neighbourhood best
 /// matches its own (plus the parent neighbourhood's when the context has a parent).
-pub fn pass(level: &TargetLevel, state: &mut State, sample: &SampleLevel, context: &PassContext, order: &[u32], rng: &mut ChaCha8Rng) -> PassStats {
+pub fn pass(
+    level: &TargetLevel,
+    state: &mut State,
+    sample: &SampleLevel,
+    context: &PassContext,
+    order: &[u32],
+    rng: &mut ChaCha8Rng,
+) -> PassStats {
     let r = level.template / 2;
     let full: Vec<u32> = match context.search {
         Search::Full => full_candidates(sample, r),
@@ -134,12 +155,23 @@ pub fn pass(level: &TargetLevel, state: &mut State, sample: &SampleLevel, contex
     for (visit, &v) in order.iter().enumerate() {
         let v = v as usize;
         let own = terms(level.slots_of(v), &state.labels, sample, known.as_deref());
-        let parent_terms = context.parent.map(|p| (terms(level.parent_slots_of(v), &p.state.labels, p.sample, None), p.sample));
+        let parent_terms = context
+            .parent
+            .map(|p| (terms(level.parent_slots_of(v), &p.state.labels, p.sample, None), p.sample));
         let set: &[u32] = match context.search {
             Search::Full => &full,
             Search::KCoherence { k } => {
                 let sources = Sources { shifts: level.shifts_of(v), known: known.as_deref() };
-                coherence_candidates(&sources, state, sample, (k, r), context.parent.is_some(), visit as u32, &mut stamp, &mut candidates);
+                coherence_candidates(
+                    &sources,
+                    state,
+                    sample,
+                    (k, r),
+                    context.parent.is_some(),
+                    visit as u32,
+                    &mut stamp,
+                    &mut candidates,
+                );
                 if candidates.is_empty() {
                     let seed = random_pixel(sample, r, rng);
                     candidates.push(seed);
@@ -195,7 +227,16 @@ struct Sources<'a> {
 /// k-coherence (Tong §5.2): forward-shift every source vertex's coordinate by its offset and
 /// take that pixel's kNN list (first `k` entries); deduplicated with a per-visit stamp.
 #[allow(clippy::too_many_arguments)]
-fn coherence_candidates(sources: &Sources, state: &State, sample: &SampleLevel, (k, r): (usize, usize), two_level: bool, visit: u32, stamp: &mut [u32], out: &mut Vec<u32>) {
+fn coherence_candidates(
+    sources: &Sources,
+    state: &State,
+    sample: &SampleLevel,
+    (k, r): (usize, usize),
+    two_level: bool,
+    visit: u32,
+    stamp: &mut [u32],
+    out: &mut Vec<u32>,
+) {
     out.clear();
     for &(u, offset) in sources.shifts {
         if sources.known.is_some_and(|known| !known[u as usize]) {
@@ -216,7 +257,11 @@ fn coherence_candidates(sources: &Sources, state: &State, sample: &SampleLevel, 
 
 /// A uniformly random pixel whose `radius` neighbourhood lies inside the sample.
 fn random_pixel(sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -> u32 {
-    sample.candidate_pixel(rng.random_range(0..sample.width as i64), rng.random_range(0..sample.height as i64), radius) as u32
+    sample.candidate_pixel(
+        rng.random_range(0..sample.width as i64),
+        rng.random_range(0..sample.height as i64),
+        radius,
+    ) as u32
 }
 
 /// Random sample coordinates for every vertex (the coarsest level's start).
@@ -239,7 +284,10 @@ pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel) -> Sta
         .iter()
         .map(|link| {
             let [cx, cy] = coarse.uv[link.vertex as usize];
-            let (x, y) = sample.bring_inside((2 * cx) as i64 + link.offset[0].round() as i64, (2 * cy) as i64 + link.offset[1].round() as i64);
+            let (x, y) = sample.bring_inside(
+                (2 * cx) as i64 + link.offset[0].round() as i64,
+                (2 * cy) as i64 + link.offset[1].round() as i64,
+            );
             [x as i32, y as i32]
         })
         .collect();
@@ -295,7 +343,9 @@ mod tests {
     /// in an aperiodic-looking but periodic layout.
     pub(crate) fn periodic_sample(k: usize) -> SampleLevel {
         let (w, h, n) = (16usize, 16usize, 5usize);
-        let labels: Vec<u16> = (0..w * h).map(|p| (((p % w) / 2 + (p / w) / 3 * 3 + (p % w) * (p / w) % 3) % 4) as u16).collect();
+        let labels: Vec<u16> = (0..w * h)
+            .map(|p| (((p % w) / 2 + (p / w) / 3 * 3 + (p % w) * (p / w) % 3) % 4) as u16)
+            .collect();
         let mut gamma = vec![0.0f32; n * n];
         for i in 0..4 {
             gamma[i * n + i] = 1.0;
@@ -306,23 +356,42 @@ mod tests {
         // Exhaustive kNN lists by plain label comparison of 5×5 wrapped neighbourhoods.
         let patch = |p: usize| -> Vec<u16> {
             let (x, y) = ((p % w) as i64, (p / w) as i64);
-            (-2..=2).flat_map(|dy| (-2..=2).map(move |dx| (dx, dy))).map(|(dx, dy)| labels[((y + dy).rem_euclid(h as i64) * w as i64 + (x + dx).rem_euclid(w as i64)) as usize]).collect()
+            (-2..=2)
+                .flat_map(|dy| (-2..=2).map(move |dx| (dx, dy)))
+                .map(|(dx, dy)| {
+                    labels
+                        [((y + dy).rem_euclid(h as i64) * w as i64 + (x + dx).rem_euclid(w as i64)) as usize]
+                })
+                .collect()
         };
         let mut knn = Vec::new();
         for p in 0..w * h {
-            let mut others: Vec<(usize, usize)> = (0..w * h).filter(|&q| q != p).map(|q| (patch(p).iter().zip(patch(q)).filter(|(a, b)| **a != *b).count(), q)).collect();
+            let mut others: Vec<(usize, usize)> = (0..w * h)
+                .filter(|&q| q != p)
+                .map(|q| (patch(p).iter().zip(patch(q)).filter(|(a, b)| **a != *b).count(), q))
+                .collect();
             others.sort();
             knn.push(p as u32);
             knn.extend(others.iter().take(k - 1).map(|&(_, q)| q as u32));
         }
-        SampleLevel { width: w, height: h, labels, gamma, textons: n, knn, knn_two_level: None, k, tileable: true }
+        SampleLevel {
+            width: w,
+            height: h,
+            labels,
+            gamma,
+            textons: n,
+            knn,
+            knn_two_level: None,
+            k,
+            tileable: true,
+        }
     }
 
     #[test]
     fn an_exact_copy_is_a_fixed_point_of_a_full_search_pass() {
         let sample = periodic_sample(4);
         let level = &grid_levels(32, 32, 1, 5, 3)[0];
-        let uv: Vec<[i32; 2]> = (0..32 * 32).map(|v| [(v % 32 % 16) as i32, (v / 32 % 16) as i32]).collect();
+        let uv: Vec<[i32; 2]> = (0..32 * 32).map(|v| [v % 32 % 16, v / 32 % 16]).collect();
         let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
         let mut state = State { labels, uv };
         let before = state.clone();
@@ -330,7 +399,13 @@ mod tests {
         let order: Vec<u32> = (0..32 * 32).collect();
         let context = PassContext { parent: None, search: Search::Full, causal: false };
         pass(level, &mut state, &sample, &context, &order, &mut rng);
-        let interior_changed = (0..32 * 32).filter(|&v| (2..30).contains(&(v % 32)) && (2..30).contains(&(v / 32)) && state.labels[v] != before.labels[v]).count();
+        let interior_changed = (0..32 * 32)
+            .filter(|&v| {
+                (2..30).contains(&(v % 32))
+                    && (2..30).contains(&(v / 32))
+                    && state.labels[v] != before.labels[v]
+            })
+            .count();
         assert_eq!(interior_changed, 0);
     }
 }

@@ -43,7 +43,13 @@ impl Preset {
     /// random vertex) and refined by a full-neighbourhood pass in random order; every finer level inherits from the coarser one (first pass) and is
     /// refined with two-level neighbourhoods and two-level kNN lists (second pass).
     pub fn tong2002() -> Self {
-        Preset { name: "tong2002", grow_order: VisitOrder::Grow, order: VisitOrder::Random, coarse_passes: 2, two_level: true }
+        Preset {
+            name: "tong2002",
+            grow_order: VisitOrder::Grow,
+            order: VisitOrder::Random,
+            coarse_passes: 2,
+            two_level: true,
+        }
     }
 
     /// Presets by name, for `--preset`.
@@ -83,7 +89,12 @@ pub struct LevelReport {
 
 /// Synthesizes every level of `targets` (finest first, as many as `sample` has levels in
 /// use), returning the finest level's state and a report per level, coarsest first.
-pub fn synthesize(targets: &[TargetLevel], sample: &Sample, params: &SynthParams, progress: &dyn Progress) -> Result<(State, Vec<LevelReport>)> {
+pub fn synthesize(
+    targets: &[TargetLevel],
+    sample: &Sample,
+    params: &SynthParams,
+    progress: &dyn Progress,
+) -> Result<(State, Vec<LevelReport>)> {
     if targets.is_empty() || targets.len() > sample.levels.len() {
         return Err(Error::invalid("synthesis needs one target level per sample level"));
     }
@@ -99,7 +110,11 @@ pub fn synthesize(targets: &[TargetLevel], sample: &Sample, params: &SynthParams
     let mut state = random_state(target.vertices, level_sample, r, &mut rng);
     let mut stats = PassStats::default();
     for p in 0..params.preset.coarse_passes {
-        let order = visit_order(target, if p == 0 { params.preset.grow_order } else { params.preset.order }, &mut rng);
+        let order = visit_order(
+            target,
+            if p == 0 { params.preset.grow_order } else { params.preset.order },
+            &mut rng,
+        );
         let context = PassContext { parent: None, search: search_for(params, level_sample), causal: p == 0 };
         stats = pass(target, &mut state, level_sample, &context, &order, &mut rng);
         progress.advance(1);
@@ -113,7 +128,11 @@ pub fn synthesize(targets: &[TargetLevel], sample: &Sample, params: &SynthParams
         state = inherit(target, &coarse, level_sample);
         let parent = Parent { state: &coarse, sample: &sample.levels[l + 1] };
         let order = visit_order(target, params.preset.order, &mut rng);
-        let context = PassContext { parent: params.preset.two_level.then_some(&parent), search: search_for(params, level_sample), causal: false };
+        let context = PassContext {
+            parent: params.preset.two_level.then_some(&parent),
+            search: search_for(params, level_sample),
+            causal: false,
+        };
         let stats = pass(target, &mut state, level_sample, &context, &order, &mut rng);
         progress.advance(1);
         reports.push(report(l, target, 2, started.elapsed(), stats));
@@ -130,7 +149,13 @@ fn search_for(params: &SynthParams, sample: &SampleLevel) -> Search {
     }
 }
 
-fn report(level: usize, target: &TargetLevel, passes: usize, elapsed: Duration, stats: PassStats) -> LevelReport {
+fn report(
+    level: usize,
+    target: &TargetLevel,
+    passes: usize,
+    elapsed: Duration,
+    stats: PassStats,
+) -> LevelReport {
     LevelReport {
         level,
         vertices: target.vertices,

@@ -35,17 +35,36 @@ pub struct PlaneResult {
 }
 
 /// Synthesizes a `width × height` plane from `sample`.
-pub fn synthesize_plane(sample: &Sample, (width, height): (usize, usize), params: &SynthParams, progress: &dyn Progress) -> Result<PlaneResult> {
+pub fn synthesize_plane(
+    sample: &Sample,
+    (width, height): (usize, usize),
+    params: &SynthParams,
+    progress: &dyn Progress,
+) -> Result<PlaneResult> {
     if width == 0 || height == 0 || width * height > 1 << 26 {
-        return Err(Error::invalid(format!("--plane {width}x{height}: sides must be at least 1 and the area at most 2^26")));
+        return Err(Error::invalid(format!(
+            "--plane {width}x{height}: sides must be at least 1 and the area at most 2^26"
+        )));
     }
-    let targets = grid_levels(width, height, sample.levels.len(), params.neighborhood, parent_size(params.neighborhood));
+    let targets = grid_levels(
+        width,
+        height,
+        sample.levels.len(),
+        params.neighborhood,
+        parent_size(params.neighborhood),
+    );
     let (state, reports) = synthesize(&targets, sample, params, progress)?;
     Ok(PlaneResult { width, height, state, reports })
 }
 
 /// Writes `result` (synthesized from the analysis in `analysis_dir`) into the directory `out`.
-pub fn write_plane(result: &PlaneResult, analysis_dir: &Path, params_json: serde_json::Value, out: &Path, overwrite: bool) -> Result<PathBuf> {
+pub fn write_plane(
+    result: &PlaneResult,
+    analysis_dir: &Path,
+    params_json: serde_json::Value,
+    out: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
     let staged = StagedDir::new(out, overwrite)?;
     let dir = staged.path();
     let (w, h) = (result.width, result.height);
@@ -58,7 +77,12 @@ pub fn write_plane(result: &PlaneResult, analysis_dir: &Path, params_json: serde
     let embedding = ndarray::Array2::from_shape_vec((embedding.shape[0], dims), embedding.data)
         .map_err(|e| Error::format(analysis_dir.join("level0_embedding.npy"), e.to_string()))?;
     let colours = false_colours(&embedding);
-    let rgb: Vec<u8> = result.state.labels.iter().flat_map(|&l| colours.get(l as usize).copied().unwrap_or([0; 3])).collect();
+    let rgb: Vec<u8> = result
+        .state
+        .labels
+        .iter()
+        .flat_map(|&l| colours.get(l as usize).copied().unwrap_or([0; 3]))
+        .collect();
     save_png(&dir.join("textons.png"), w, h, &rgb)?;
 
     let (sw, sh, image) = closest_to_normal_image(analysis_dir)?;
@@ -66,7 +90,13 @@ pub fn write_plane(result: &PlaneResult, analysis_dir: &Path, params_json: serde
         .state
         .uv
         .iter()
-        .flat_map(|&[x, y]| [(x as usize * 255 / sw.max(2).saturating_sub(1)) as u8, (y as usize * 255 / sh.max(2).saturating_sub(1)) as u8, 0])
+        .flat_map(|&[x, y]| {
+            [
+                (x as usize * 255 / sw.max(2).saturating_sub(1)) as u8,
+                (y as usize * 255 / sh.max(2).saturating_sub(1)) as u8,
+                0,
+            ]
+        })
         .collect();
     save_png(&dir.join("uv.png"), w, h, &uv_rgb)?;
     let copied: Vec<u8> = result
@@ -101,7 +131,10 @@ fn closest_to_normal_image(analysis_dir: &Path) -> Result<(usize, usize, Vec<f16
     let [n, h, w, 3] = images.shape[..] else { return Err(bad()) };
     let best = (0..n)
         .min_by(|&a, &b| {
-            let key = |i: usize| directions.data.get(4 * i).copied().unwrap_or(0.0) + directions.data.get(4 * i + 2).copied().unwrap_or(0.0);
+            let key = |i: usize| {
+                directions.data.get(4 * i).copied().unwrap_or(0.0)
+                    + directions.data.get(4 * i + 2).copied().unwrap_or(0.0)
+            };
             key(a).total_cmp(&key(b))
         })
         .ok_or_else(bad)?;
@@ -113,12 +146,18 @@ fn closest_to_normal_image(analysis_dir: &Path) -> Result<(usize, usize, Vec<f16
 pub fn read_plane(dir: &Path) -> Result<(usize, usize, State, serde_json::Value)> {
     let path = dir.join(MANIFEST);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let manifest: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::format(&path, e.to_string()))?;
+    let manifest: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| Error::format(&path, e.to_string()))?;
     let labels: npy::NpyArray<u16> = npy::read(&dir.join("labels.npy"))?;
     let uv: npy::NpyArray<u32> = npy::read(&dir.join("uv.npy"))?;
-    let [h, w] = labels.shape[..] else { return Err(Error::format(dir.join("labels.npy"), "expected shape [h, w]")) };
+    let [h, w] = labels.shape[..] else {
+        return Err(Error::format(dir.join("labels.npy"), "expected shape [h, w]"));
+    };
     if uv.shape != [h, w, 2] {
-        return Err(Error::format(dir.join("uv.npy"), format!("shape {:?} does not match labels [{h}, {w}]", uv.shape)));
+        return Err(Error::format(
+            dir.join("uv.npy"),
+            format!("shape {:?} does not match labels [{h}, {w}]", uv.shape),
+        ));
     }
     let uv = uv.data.chunks_exact(2).map(|c| [c[0] as i32, c[1] as i32]).collect();
     Ok((w, h, State { labels: labels.data, uv }, manifest))

@@ -77,7 +77,9 @@ impl SampleLevel {
         if self.labels.len() != pixels || self.gamma.len() != self.textons * self.textons || self.k == 0 {
             return Err("the analysis arrays do not match analysis.json".into());
         }
-        if self.knn.len() != pixels * self.k || self.knn_two_level.as_ref().is_some_and(|l| l.len() != pixels * self.k) {
+        if self.knn.len() != pixels * self.k
+            || self.knn_two_level.as_ref().is_some_and(|l| l.len() != pixels * self.k)
+        {
             return Err("the kNN lists do not match the texton map".into());
         }
         if self.labels.iter().any(|&l| l as usize >= self.textons) {

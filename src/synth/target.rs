@@ -80,9 +80,17 @@ impl TargetLevel {
 /// The levels of a regular `width × height` grid (plane mode): each coarser grid halves
 /// both sides; the template of a vertex is the grid itself around it, and template pixels
 /// past the grid's edge are not compared (as in 2D texture synthesis).
-pub fn grid_levels(width: usize, height: usize, levels: usize, template: usize, parent_template: usize) -> Vec<TargetLevel> {
+pub fn grid_levels(
+    width: usize,
+    height: usize,
+    levels: usize,
+    template: usize,
+    parent_template: usize,
+) -> Vec<TargetLevel> {
     let sizes: Vec<(usize, usize)> =
-        std::iter::successors(Some((width, height)), |&(w, h)| Some((w.div_ceil(2), h.div_ceil(2)))).take(levels).collect();
+        std::iter::successors(Some((width, height)), |&(w, h)| Some((w.div_ceil(2), h.div_ceil(2))))
+            .take(levels)
+            .collect();
     (0..levels)
         .map(|l| {
             let (w, h) = sizes[l];
@@ -95,7 +103,9 @@ pub fn grid_levels(width: usize, height: usize, levels: usize, template: usize, 
                     for dy in -r..=r {
                         for dx in -r..=r {
                             if (0..w as i64).contains(&(x + dx)) && (0..h as i64).contains(&(y + dy)) {
-                                level.shifts.push((((y + dy) * w as i64 + x + dx) as u32, [dx as f32, dy as f32]));
+                                level
+                                    .shifts
+                                    .push((((y + dy) * w as i64 + x + dx) as u32, [dx as f32, dy as f32]));
                             }
                         }
                     }
