@@ -22,6 +22,7 @@
 pub mod btf;
 pub mod error;
 pub mod fsutil;
+pub mod mesh;
 pub mod progress;
 
 pub use error::{Error, Result};

@@ -1,0 +1,110 @@
+//! Reading a mesh file, with the format picked by the extension (case-insensitive):
+//! `.obj` ([`super::obj`]), `.off` ([`super::off`]), `.ply` ([`super::ply`]).
+
+use super::{obj, off, ply, prepare, topology, Mesh, Soup};
+use crate::{Error, Result};
+use std::path::Path;
+
+/// How a mesh file is turned into a [`Mesh`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoadOptions {
+    /// Vertices closer than this fraction of the bounding-box diagonal are welded into one
+    /// (default `1e-6`: far below any real feature, above the rounding of coordinates
+    /// written with six significant digits). `0` welds only identical positions.
+    pub weld_tolerance: f32,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            weld_tolerance: 1e-6,
+        }
+    }
+}
+
+/// Reads the mesh at `path` with the default [`LoadOptions`].
+pub fn load(path: &Path) -> Result<Mesh> {
+    load_with(path, &LoadOptions::default())
+}
+
+/// Reads the mesh at `path`, validates and repairs it (see [`prepare`](super::prepare)),
+/// and logs its topology.
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Mesh> {
+    let soup = read_soup(path)?;
+    let mesh = prepare::prepare(soup, path, options)?;
+    tracing::info!("{}: {}", path.display(), topology::summary(&mesh));
+    Ok(mesh)
+}
+
+/// Parses `path` into a triangle soup without validating it.
+pub fn read_soup(path: &Path) -> Result<Soup> {
+    let parse = parser_for(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse(&bytes, path)
+}
+
+type Parser = fn(&[u8], &Path) -> Result<Soup>;
+
+fn parser_for(path: &Path) -> Result<Parser> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "obj" => Ok(obj::parse),
+        "off" => Ok(off::parse),
+        "ply" => Ok(ply::read::parse),
+        _ => Err(Error::format(
+            path,
+            "unknown mesh format: expected a .obj, .off or .ply file",
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::test_meshes::shared;
+
+    #[test]
+    fn unknown_extension_is_an_error_naming_the_file() {
+        let e = load(Path::new("model.stl")).unwrap_err().to_string();
+        assert!(e.starts_with("model.stl: unknown mesh format"), "{e}");
+    }
+
+    #[test]
+    fn missing_file_is_an_io_error_naming_the_file() {
+        let e = load(Path::new("/nonexistent/bunny.OBJ"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("/nonexistent/bunny.OBJ:"), "{e}");
+    }
+
+    #[test]
+    fn extension_is_case_insensitive() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("tri.OFF");
+        std::fs::write(&path, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").expect("write");
+        assert_eq!(load(&path).expect("loads").face_count(), 1);
+    }
+
+    #[test]
+    fn all_shared_meshes_load_as_manifolds() {
+        for name in ["bunny-1k8.obj", "cow.off", "dragon-10k.off"] {
+            let m = load(&shared(name)).expect(name);
+            assert!(topology::is_manifold(&m), "{name}");
+        }
+    }
+
+    #[test]
+    fn shared_meshes_have_their_documented_topology() {
+        let bunny = topology::summary(&load(&shared("bunny-1k8.obj")).expect("bunny"));
+        assert_eq!(
+            (bunny.vertices, bunny.faces, bunny.boundary_edges),
+            (1839, 3674, 0)
+        );
+        assert_eq!((bunny.components, bunny.euler_characteristic), (1, 2));
+        let dragon = topology::summary(&load(&shared("dragon-10k.off")).expect("dragon"));
+        assert_eq!(dragon.boundary_edges, 6);
+    }
+}
