@@ -19,12 +19,14 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+pub mod bvh;
 pub mod load;
 mod manifold;
 pub mod obj;
 pub mod off;
 pub mod ply;
 pub mod prepare;
+pub mod remesh;
 pub mod topology;
 mod weld;
 
