@@ -206,42 +206,65 @@ fn collapse_folds(he: &Halfedges, h: u32, remove: u32, q: Vec3, low: f32, s: &mu
 /// Flips edges where that brings the four vertices involved closer to valence 6 (4 on a
 /// boundary), without folding the two faces over. Returns the number of flips.
 pub(crate) fn equalize_valences(he: &mut Halfedges, s: &mut Scratch) -> usize {
+    // Valences change only at the four vertices of a flip, so count them once and keep
+    // them current rather than walk four rings for every edge.
+    let mut valence: Vec<i64> = (0..he.pos.len() as u32)
+        .into_par_iter()
+        .map_init(Vec::new, |ring, v| {
+            if he.vertex_alive[v as usize] {
+                he.valence(v, ring) as i64
+            } else {
+                0
+            }
+        })
+        .collect();
     let mut flips = 0;
     for h in 0..he.halfedge_count() {
         if !is_edge_representative(he, h) || he.opp(h) == NONE {
             continue;
         }
-        if flip_improves(he, h, s) && !flip_folds(he, h) {
+        let quad = [
+            he.from(h),
+            he.to(h),
+            he.from(prev(h)),
+            he.from(prev(he.opp(h))),
+        ];
+        if flip_improves(he, quad, &valence) && !flip_exists(he, quad, s) && !flip_folds(he, h) {
             he.flip(h);
+            for (v, change) in quad.into_iter().zip([-1, -1, 1, 1]) {
+                valence[v as usize] += change;
+            }
             flips += 1;
         }
     }
     flips
 }
 
-fn flip_improves(he: &Halfedges, h: u32, s: &mut Scratch) -> bool {
-    let o = he.opp(h);
-    let [a, b, c, d] = [he.from(h), he.to(h), he.from(prev(h)), he.from(prev(o))];
+/// Whether flipping the edge a–b of the faces (a, b, c), (b, a, d) to c–d brings the
+/// four valences closer to 6 (4 on a boundary), keeping every one at its minimum or more.
+fn flip_improves(he: &Halfedges, [a, b, c, d]: [u32; 4], valence: &[i64]) -> bool {
     if c == d {
         return false;
-    }
-    he.ring(c, &mut s.c);
-    if s.c.contains(&d) {
-        return false; // the flipped edge exists already
     }
     let mut before = 0;
     let mut after = 0;
     for (v, change) in [(a, -1), (b, -1), (c, 1), (d, 1)] {
         let boundary = he.is_boundary_vertex(v);
-        let valence = he.valence(v, &mut s.a) as i64;
-        if valence + change < min_valence(boundary) as i64 {
+        let n = valence[v as usize];
+        if n + change < min_valence(boundary) as i64 {
             return false;
         }
         let target = if boundary { 4 } else { 6 };
-        before += (valence - target).abs();
-        after += (valence + change - target).abs();
+        before += (n - target).abs();
+        after += (n + change - target).abs();
     }
     after < before
+}
+
+/// Whether the edge c–d a flip would make exists already (flipping would duplicate it).
+fn flip_exists(he: &Halfedges, [_, _, c, d]: [u32; 4], s: &mut Scratch) -> bool {
+    he.ring(c, &mut s.c);
+    s.c.contains(&d)
 }
 
 /// Whether the faces (a, d, c) and (b, c, d) that a flip would make fold against each
