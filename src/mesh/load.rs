@@ -27,7 +27,7 @@ pub fn load(path: &Path) -> Result<Mesh> {
     load_with(path, &LoadOptions::default())
 }
 
-/// Reads the mesh at `path`, validates and repairs it (see [`prepare`](super::prepare)),
+/// Reads the mesh at `path`, validates and repairs it (see [`prepare`](mod@super::prepare)),
 /// and logs its topology.
 pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Mesh> {
     let soup = read_soup(path)?;

@@ -4,11 +4,11 @@
 //!   is valid by construction: indices in range, finite coordinates, no degenerate faces,
 //!   coincident vertices welded, every edge shared by at most two consistently oriented
 //!   faces and every vertex a single fan (see [`prepare`]).
-//! - [`load`]: OBJ (through `tobj`), OFF and PLY (ASCII and binary), picked by extension.
+//! - [`load`](mod@load): OBJ (through `tobj`), OFF and PLY (ASCII and binary), picked by extension.
 //! - [`topology`]: edges, one-rings, boundaries, connected components.
 //! - [`remesh`]: isotropic remeshing to a target edge length or vertex count
 //!   (Botsch & Kobbelt 2004), which gives synthesis evenly spaced samples.
-//! - [`ply::write`]: binary PLY output with named per-vertex properties.
+//! - [`ply::write`](mod@ply::write): binary PLY output with named per-vertex properties.
 //!
 //! ```no_run
 //! use btfsynth::mesh::{self, remesh};
@@ -18,6 +18,8 @@
 //! println!("{:?}", remesh::edge_length_stats(&fine));
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
+
+#![warn(missing_docs)]
 
 pub mod bvh;
 pub mod load;

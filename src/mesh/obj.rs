@@ -20,7 +20,6 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, _) = tobj::load_obj_buf(&mut geometry.as_bytes(), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)

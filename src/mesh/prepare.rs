@@ -64,7 +64,15 @@ pub fn prepare(soup: Soup, path: &Path, options: &LoadOptions) -> Result<Mesh> {
     if triangles.is_empty() {
         return Err(Error::format(path, "every face is degenerate (zero area)"));
     }
-    let (positions, mut triangles) = drop_unused_vertices(positions, triangles, path);
+    let (positions, mut triangles, dropped) = drop_unused_vertices(positions, triangles);
+    // Welded duplicates are unused by now; only report vertices the file left unused.
+    if dropped > merged {
+        tracing::info!(
+            "{}: dropped {} vertices that no face uses",
+            path.display(),
+            dropped - merged
+        );
+    }
     let flipped = manifold::orient(&mut triangles);
     if flipped > 0 {
         tracing::warn!(
@@ -168,12 +176,11 @@ fn is_degenerate(positions: &[Vec3], t: &[u32; 3]) -> bool {
     (b - a).cross(c - a).length() <= 1e-7 * longest
 }
 
-/// Drops vertices no face uses, renumbering in the original order.
+/// Drops vertices no face uses, renumbering in the original order; returns how many.
 fn drop_unused_vertices(
     positions: Vec<Vec3>,
     mut triangles: Vec<[u32; 3]>,
-    path: &Path,
-) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+) -> (Vec<Vec3>, Vec<[u32; 3]>, usize) {
     let mut new_index = vec![u32::MAX; positions.len()];
     for t in &triangles {
         for &i in t {
@@ -187,17 +194,11 @@ fn drop_unused_vertices(
             kept.push(*p);
         }
     }
-    let unused = positions.len() - kept.len();
-    if unused > 0 {
-        tracing::info!(
-            "{}: dropped {unused} vertices that no face uses",
-            path.display()
-        );
-    }
     for t in &mut triangles {
         *t = t.map(|i| new_index[i as usize]);
     }
-    (kept, triangles)
+    let dropped = positions.len() - kept.len();
+    (kept, triangles, dropped)
 }
 
 /// Splits non-manifold edges and vertices (see the module documentation).

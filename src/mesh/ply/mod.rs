@@ -1,5 +1,5 @@
 //! The Polygon File Format (PLY): [`read`] parses ASCII and binary (little- and
-//! big-endian) files; [`write`] writes binary little-endian files with named per-vertex
+//! big-endian) files; [`write`](mod@write) writes binary little-endian files with named per-vertex
 //! properties, the form later stages use for their outputs.
 //!
 //! This module holds the header, which both share.

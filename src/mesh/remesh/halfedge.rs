@@ -84,9 +84,9 @@ impl Halfedges {
     pub fn extract(&self) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>) {
         let mut index = vec![NONE; self.pos.len()];
         let (mut pos, mut hint) = (Vec::new(), Vec::new());
-        for v in 0..self.pos.len() {
+        for (v, slot) in index.iter_mut().enumerate() {
             if self.vertex_alive[v] {
-                index[v] = pos.len() as u32;
+                *slot = pos.len() as u32;
                 pos.push(self.pos[v]);
                 hint.push(self.hint[v]);
             }
