@@ -203,6 +203,31 @@ mod tests {
     }
 
     #[test]
+    fn tiny_meshes_survive_coarse_and_fine_targets() {
+        let triangle = Mesh::new(
+            vec![glam::Vec3::ZERO, glam::Vec3::X, glam::Vec3::Y],
+            vec![[0, 1, 2]],
+        )
+        .expect("valid");
+        let tetrahedron = Mesh::new(
+            vec![
+                glam::Vec3::ZERO,
+                glam::Vec3::X,
+                glam::Vec3::Y,
+                glam::Vec3::Z,
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+        )
+        .expect("valid");
+        for mesh in [triangle, tetrahedron, cube()] {
+            for length in [0.07, 0.5, 3.0] {
+                let out = remesh_to_edge_length(&mesh, length).expect("remeshes");
+                assert_same_topology(&mesh, &out);
+            }
+        }
+    }
+
+    #[test]
     fn absurd_targets_are_refused() {
         assert!(remesh_to_edge_length(&cube(), 0.0).is_err());
         assert!(remesh_to_edge_length(&cube(), f32::NAN).is_err());
