@@ -22,11 +22,7 @@ fn main() -> anyhow::Result<()> {
     let count: usize = count.parse()?;
     let start = Instant::now();
     let mesh = mesh::load(Path::new(input))?;
-    println!(
-        "loaded {input} in {:.2?}: {}",
-        start.elapsed(),
-        topology::summary(&mesh)
-    );
+    println!("loaded {input} in {:.2?}: {}", start.elapsed(), topology::summary(&mesh));
     let start = Instant::now();
     let fine = remesh::remesh_to_vertex_count(&mesh, count)?;
     let elapsed = start.elapsed();

@@ -17,19 +17,10 @@ impl StagedDir {
     /// Prepares to write `target`. Fails if `target` exists and `overwrite` is false, or if
     /// the parent directory cannot be written.
     pub fn new(target: &Path, overwrite: bool) -> Result<Self> {
-        if target.exists() && !overwrite {
-            return Err(Error::invalid(format!(
-                "{} already exists (pass --force to replace it)",
-                target.display()
-            )));
-        }
+        check_target(target, overwrite)?;
         let staging = temp_sibling(target)?;
         std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
-        Ok(StagedDir {
-            staging,
-            target: target.to_path_buf(),
-            committed: false,
-        })
+        Ok(StagedDir { staging, target: target.to_path_buf(), committed: false })
     }
 
     /// Where the files are written while the output is incomplete.
@@ -42,13 +33,11 @@ impl StagedDir {
         if self.target.exists() {
             let old = temp_sibling(&self.target)?.with_extension("old");
             std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
-            std::fs::rename(&self.staging, &self.target)
-                .map_err(|e| Error::io(&self.target, e))?;
+            std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
             // The new output is in place; a leftover old copy is only wasted space.
             let _ = std::fs::remove_dir_all(&old);
         } else {
-            std::fs::rename(&self.staging, &self.target)
-                .map_err(|e| Error::io(&self.target, e))?;
+            std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
         }
         self.committed = true;
         Ok(self.target.clone())
@@ -61,6 +50,18 @@ impl Drop for StagedDir {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
+}
+
+/// Fails early, before any long work, if `target` could not be written: it exists and
+/// `overwrite` is false, or its parent directory is missing.
+pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
+    if target.exists() && !overwrite {
+        return Err(Error::invalid(format!(
+            "{} already exists (pass --force to replace it)",
+            target.display()
+        )));
+    }
+    temp_sibling(target).map(|_| ())
 }
 
 /// Writes a file atomically: the bytes go to a temporary sibling that is renamed over `path`.

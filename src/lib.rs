@@ -19,10 +19,13 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+pub mod analysis;
 pub mod btf;
+pub mod cli;
 pub mod error;
 pub mod fsutil;
 pub mod mesh;
 pub mod progress;
+pub mod seeded;
 
 pub use error::{Error, Result};

@@ -142,9 +142,7 @@ impl DirectionSet {
     /// Every (light, view) pair, view-major (all lights for the first view, then the next).
     pub fn pairs(&self) -> Vec<DirectionPair> {
         let dirs = self.directions();
-        dirs.iter()
-            .flat_map(|&view| dirs.iter().map(move |&light| DirectionPair { light, view }))
-            .collect()
+        dirs.iter().flat_map(|&view| dirs.iter().map(move |&light| DirectionPair { light, view })).collect()
     }
 }
 

@@ -43,9 +43,7 @@ fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    let decoded = reader
-        .decode()
-        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+    let decoded = reader.decode().map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let data = if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
         decoded
@@ -65,11 +63,8 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
     use exr::prelude::{read, MetaData, ReadChannels, ReadLayers, ReadSpecificChannel, Vec2};
     let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
     let meta = MetaData::read_from_file(path, false).map_err(bad)?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| Error::format(path, "EXR has no layers"))?;
-    let has = |name: &str| header.channels.list.iter().any(|c| c.name == exr::prelude::Text::from(name));
+    let header = meta.headers.first().ok_or_else(|| Error::format(path, "EXR has no layers"))?;
+    let has = |name: &str| header.channels.list.iter().any(|c| c.name == *name);
     let rgb = has("R") && has("G") && has("B");
     if !rgb && !has("Y") {
         return Err(Error::format(path, "EXR has neither R, G, B nor Y channels"));
@@ -157,8 +152,15 @@ pub fn write_exr(path: &Path, width: usize, height: usize, data: &[f16]) -> Resu
 /// Writes linear RGB as an 8-bit sRGB PNG (values clamped to [0, 1]).
 pub fn write_png(path: &Path, width: usize, height: usize, data: &[f16]) -> Result<()> {
     let bytes: Vec<u8> = data.iter().map(|v| linear_to_srgb8(v.to_f32())).collect();
-    image::save_buffer_with_format(path, &bytes, width as u32, height as u32, image::ExtendedColorType::Rgb8, image::ImageFormat::Png)
-        .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+    image::save_buffer_with_format(
+        path,
+        &bytes,
+        width as u32,
+        height as u32,
+        image::ExtendedColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
 }
 
 /// The sRGB transfer function's inverse.

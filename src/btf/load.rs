@@ -93,9 +93,8 @@ fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
         .iter()
         .enumerate()
         .map(|(i, im)| {
-            let at = |what: &str, e: Error| {
-                Error::format(path, format!("image {i} ({}): {what} {e}", im.file))
-            };
+            let at =
+                |what: &str, e: Error| Error::format(path, format!("image {i} ({}): {what} {e}", im.file));
             let light = Direction::new(im.light[0], im.light[1]).map_err(|e| at("light", e))?;
             let view = Direction::new(im.view[0], im.view[1]).map_err(|e| at("view", e))?;
             Ok(Entry { file: dir.join(&im.file), pair: DirectionPair { light, view } })
@@ -143,7 +142,10 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
 fn pair_from_name(file: &Path) -> Result<DirectionPair> {
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let bad = |why: String| {
-        Error::format(file, format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"))
+        Error::format(
+            file,
+            format!("cannot read directions from the name ({why}); expected tl015_pl000_tv000_pv000.png"),
+        )
     };
     let mut angles = parse_tokens(&stem).map_err(bad)?;
     let folder = file.parent().and_then(|p| p.file_name()).map(|s| s.to_string_lossy().into_owned());
@@ -152,7 +154,10 @@ fn pair_from_name(file: &Path) -> Result<DirectionPair> {
             match (angles[slot], value) {
                 (None, v) => angles[slot] = v,
                 (Some(a), Some(b)) if a != b => {
-                    return Err(bad(format!("its view angles disagree with its folder {}", folder.unwrap_or_default())))
+                    return Err(bad(format!(
+                        "its view angles disagree with its folder {}",
+                        folder.unwrap_or_default()
+                    )))
                 }
                 _ => {}
             }
@@ -207,7 +212,7 @@ fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progres
                 return Err(Error::format(
                     &entry.file,
                     format!(
-                        "is {}x{} but {} is {width}x{height}; all images of a stack must have one size",
+                        "this image is {}x{} pixels but {} is {width}x{height}; all images of a stack must have one size",
                         image.width,
                         image.height,
                         entries[0].file.display()
@@ -250,7 +255,13 @@ mod tests {
 
     #[test]
     fn unparseable_and_out_of_range_names_are_errors() {
-        for name in ["photo.png", "tl015_pl000_tv000.png", "tl1x_pl0_tv0_pv0.png", "tl095_pl0_tv0_pv0.png", "tl0_tl0_tv0_pv0.png"] {
+        for name in [
+            "photo.png",
+            "tl015_pl000_tv000.png",
+            "tl1x_pl0_tv0_pv0.png",
+            "tl095_pl0_tv0_pv0.png",
+            "tl0_tl0_tv0_pv0.png",
+        ] {
             let err = pair_from_name(Path::new(name)).unwrap_err().to_string();
             assert!(err.starts_with(name), "{err}");
         }

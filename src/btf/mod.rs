@@ -5,7 +5,7 @@
 //! (the Bonn UBO2003 dome) takes 161 MiB.
 
 pub mod directions;
-// gen: see below
+pub mod gen;
 pub mod image_io;
 pub mod load;
 pub mod write;
@@ -31,15 +31,14 @@ impl std::str::FromStr for Crop {
 
     fn from_str(s: &str) -> Result<Self> {
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-        let bad = || Error::invalid(format!("crop '{s}': expected x,y,w,h (four non-negative integers, w and h > 0)"));
+        let bad = || {
+            Error::invalid(format!("crop '{s}': expected x,y,w,h (four non-negative integers, w and h > 0)"))
+        };
         if parts.len() != 4 {
             return Err(bad());
         }
-        let v: Vec<u32> = parts
-            .iter()
-            .map(|p| p.parse::<u32>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| bad())?;
+        let v: Vec<u32> =
+            parts.iter().map(|p| p.parse::<u32>()).collect::<Result<_, _>>().map_err(|_| bad())?;
         if v[2] == 0 || v[3] == 0 {
             return Err(bad());
         }

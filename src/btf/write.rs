@@ -74,9 +74,8 @@ pub fn write_stack(
 
 fn file_names(pairs: &[DirectionPair], format: ImageFormat) -> Vec<String> {
     let whole = |a: f32| a.fract() == 0.0 && a >= 0.0;
-    let bonn = pairs
-        .iter()
-        .all(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi].into_iter().all(whole));
+    let bonn =
+        pairs.iter().all(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi].into_iter().all(whole));
     let ext = format.extension();
     pairs
         .iter()

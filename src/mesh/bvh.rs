@@ -47,29 +47,17 @@ pub struct ClosestPoint {
 impl TriangleBvh {
     /// Builds the hierarchy over `mesh`'s triangles.
     pub fn new(mesh: &Mesh) -> TriangleBvh {
-        let all: Vec<[Vec3; 3]> = (0..mesh.face_count())
-            .map(|f| mesh.triangle_positions(f))
-            .collect();
+        let all: Vec<[Vec3; 3]> = (0..mesh.face_count()).map(|f| mesh.triangle_positions(f)).collect();
         let mut order: Vec<u32> = (0..all.len() as u32).collect();
         let centroids: Vec<Vec3> = all.iter().map(|t| (t[0] + t[1] + t[2]) / 3.0).collect();
-        let mut nodes = vec![Node {
-            min: Vec3::ZERO,
-            max: Vec3::ZERO,
-            first: 0,
-            count: 0,
-        }];
+        let mut nodes = vec![Node { min: Vec3::ZERO, max: Vec3::ZERO, first: 0, count: 0 }];
         build(&mut nodes, 0, &mut order, 0, &all, &centroids);
         let corners = order.iter().map(|&i| all[i as usize]).collect();
         let mut slot_of = vec![0; order.len()];
         for (slot, &id) in order.iter().enumerate() {
             slot_of[id as usize] = slot as u32;
         }
-        TriangleBvh {
-            nodes,
-            corners,
-            ids: order,
-            slot_of,
-        }
+        TriangleBvh { nodes, corners, ids: order, slot_of }
     }
 
     /// The nearest point on the surface to `p`.
@@ -141,23 +129,22 @@ fn build(
     tris: &[[Vec3; 3]],
     centroids: &[Vec3],
 ) {
-    let (min, max) = order.iter().flat_map(|&i| tris[i as usize]).fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(p), hi.max(p)),
-    );
+    let (min, max) = order
+        .iter()
+        .flat_map(|&i| tris[i as usize])
+        .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
     if order.len() <= LEAF_SIZE {
-        nodes[at] = Node {
-            min,
-            max,
-            first: offset,
-            count: order.len() as u32,
-        };
+        nodes[at] = Node { min, max, first: offset, count: order.len() as u32 };
         return;
     }
-    let (cmin, cmax) = order.iter().map(|&i| centroids[i as usize]).fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(p), hi.max(p)),
-    );
+    let (cmin, cmax) = order
+        .iter()
+        .map(|&i| centroids[i as usize])
+        .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
     let axis = (cmax - cmin).max_position();
     let mid = order.len() / 2;
     order.select_nth_unstable_by(mid, |&i, &j| {
@@ -165,24 +152,12 @@ fn build(
         ci.total_cmp(&cj).then(i.cmp(&j))
     });
     let first = nodes.len();
-    nodes[at] = Node {
-        min,
-        max,
-        first: first as u32,
-        count: 0,
-    };
+    nodes[at] = Node { min, max, first: first as u32, count: 0 };
     nodes.push(nodes[at]);
     nodes.push(nodes[at]);
     let (left, right) = order.split_at_mut(mid);
     build(nodes, first, left, offset, tris, centroids);
-    build(
-        nodes,
-        first + 1,
-        right,
-        offset + mid as u32,
-        tris,
-        centroids,
-    );
+    build(nodes, first + 1, right, offset + mid as u32, tris, centroids);
 }
 
 fn box_distance_squared(p: Vec3, node: &Node) -> f32 {
@@ -238,10 +213,7 @@ mod tests {
         let inside = closest_on_triangle(Vec3::new(0.2, 0.2, 1.0), a, b, c);
         assert!(inside.distance(Vec3::new(0.2, 0.2, 0.0)) < 1e-6);
         assert_eq!(closest_on_triangle(Vec3::new(-1.0, -1.0, 0.0), a, b, c), a);
-        assert_eq!(
-            closest_on_triangle(Vec3::new(0.5, -1.0, 0.0), a, b, c),
-            Vec3::new(0.5, 0.0, 0.0)
-        );
+        assert_eq!(closest_on_triangle(Vec3::new(0.5, -1.0, 0.0), a, b, c), Vec3::new(0.5, 0.0, 0.0));
         let on_hyp = closest_on_triangle(Vec3::new(1.0, 1.0, 0.0), a, b, c);
         assert!(on_hyp.distance(Vec3::new(0.5, 0.5, 0.0)) < 1e-6);
     }

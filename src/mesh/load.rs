@@ -16,9 +16,7 @@ pub struct LoadOptions {
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        LoadOptions {
-            weld_tolerance: 1e-6,
-        }
+        LoadOptions { weld_tolerance: 1e-6 }
     }
 }
 
@@ -46,18 +44,12 @@ pub fn read_soup(path: &Path) -> Result<Soup> {
 type Parser = fn(&[u8], &Path) -> Result<Soup>;
 
 fn parser_for(path: &Path) -> Result<Parser> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     match ext.as_str() {
         "obj" => Ok(obj::parse),
         "off" => Ok(off::parse),
         "ply" => Ok(ply::read::parse),
-        _ => Err(Error::format(
-            path,
-            "unknown mesh format: expected a .obj, .off or .ply file",
-        )),
+        _ => Err(Error::format(path, "unknown mesh format: expected a .obj, .off or .ply file")),
     }
 }
 
@@ -74,9 +66,7 @@ mod tests {
 
     #[test]
     fn missing_file_is_an_io_error_naming_the_file() {
-        let e = load(Path::new("/nonexistent/bunny.OBJ"))
-            .unwrap_err()
-            .to_string();
+        let e = load(Path::new("/nonexistent/bunny.OBJ")).unwrap_err().to_string();
         assert!(e.starts_with("/nonexistent/bunny.OBJ:"), "{e}");
     }
 
@@ -99,10 +89,7 @@ mod tests {
     #[test]
     fn shared_meshes_have_their_documented_topology() {
         let bunny = topology::summary(&load(&shared("bunny-1k8.obj")).expect("bunny"));
-        assert_eq!(
-            (bunny.vertices, bunny.faces, bunny.boundary_edges),
-            (1839, 3674, 0)
-        );
+        assert_eq!((bunny.vertices, bunny.faces, bunny.boundary_edges), (1839, 3674, 0));
         assert_eq!((bunny.components, bunny.euler_characteristic), (1, 2));
         let dragon = topology::summary(&load(&shared("dragon-10k.off")).expect("dragon"));
         assert_eq!(dragon.boundary_edges, 6);
@@ -124,17 +111,10 @@ mod tests {
     fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
         let dir = tempfile::tempdir().expect("temp dir");
         let binary = dir.path().join("grid.ply");
-        crate::mesh::ply::write(&binary, &crate::mesh::test_meshes::grid(2), &[], &["c"])
-            .expect("writes");
+        crate::mesh::ply::write(&binary, &crate::mesh::test_meshes::grid(2), &[], &["c"]).expect("writes");
         vec![
-            (
-                "obj",
-                b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 2 4 -2\n".to_vec(),
-            ),
-            (
-                "off",
-                b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n".to_vec(),
-            ),
+            ("obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 2 4 -2\n".to_vec()),
+            ("off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n".to_vec()),
             (
                 "ply",
                 b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
@@ -169,15 +149,9 @@ mod tests {
     #[test]
     fn random_and_mutated_bytes_never_panic() {
         for (k, (ext, valid)) in valid_files().into_iter().enumerate() {
-            assert!(
-                survive(ext, &valid).is_some(),
-                "the unmutated {ext} file loads"
-            );
+            assert!(survive(ext, &valid).is_some(), "the unmutated {ext} file loads");
             for seed in 0..300u64 {
-                let _ = survive(
-                    ext,
-                    &noise(seed + 1000 * k as u64, (seed as usize * 13) % 700),
-                );
+                let _ = survive(ext, &noise(seed + 1000 * k as u64, (seed as usize * 13) % 700));
                 let r = noise(seed, 8);
                 let mut mutated = valid.clone();
                 for j in 0..1 + (r[0] % 4) as usize {
@@ -195,16 +169,8 @@ mod tests {
     fn nan_and_out_of_range_fail_in_every_format_naming_the_file() {
         let dir = tempfile::tempdir().expect("temp dir");
         let cases = [
-            (
-                "nan.obj",
-                "v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n",
-                "non-finite",
-            ),
-            (
-                "range.obj",
-                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
-                "not a valid OBJ",
-            ),
+            ("nan.obj", "v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n", "non-finite"),
+            ("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "not a valid OBJ"),
             (
                 "nan.ply",
                 "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
@@ -224,10 +190,7 @@ mod tests {
             let path = dir.path().join(name);
             std::fs::write(&path, text).expect("write");
             let e = load(&path).unwrap_err().to_string();
-            assert!(
-                e.starts_with(&path.display().to_string()) && e.contains(expected),
-                "{e}"
-            );
+            assert!(e.starts_with(&path.display().to_string()) && e.contains(expected), "{e}");
             assert_eq!(e.lines().count(), 1, "{e}");
         }
     }

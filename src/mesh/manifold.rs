@@ -32,12 +32,7 @@ pub(crate) fn orient(triangles: &mut [[u32; 3]]) -> usize {
 
 /// Breadth-first over faces joined by two-face edges, choosing each face's flip so that it
 /// agrees with the face it was reached from. Returns the faces reached.
-fn flood(
-    seed: usize,
-    adjacency: &Adjacency,
-    visited: &mut [bool],
-    flip: &mut [bool],
-) -> Vec<usize> {
+fn flood(seed: usize, adjacency: &Adjacency, visited: &mut [bool], flip: &mut [bool]) -> Vec<usize> {
     let mut part = vec![seed];
     visited[seed] = true;
     let mut next = 0;
@@ -86,10 +81,7 @@ fn two_face_adjacency(triangles: &[[u32; 3]]) -> Adjacency {
     for f in 0..triangles.len() {
         offsets[f + 1] += offsets[f];
     }
-    Adjacency {
-        offsets,
-        neighbours: pairs.into_iter().map(|(_, g, same)| (g, same)).collect(),
-    }
+    Adjacency { offsets, neighbours: pairs.into_iter().map(|(_, g, same)| (g, same)).collect() }
 }
 
 /// Groups the corners (`3 * face + k`) of every vertex into fans: two corners of the same
@@ -164,12 +156,7 @@ pub(crate) fn is_manifold(triangles: &[[u32; 3]]) -> bool {
         return false;
     }
     let mut fans = corner_fans(triangles);
-    let vertices = triangles
-        .iter()
-        .flatten()
-        .map(|&v| v as usize + 1)
-        .max()
-        .unwrap_or(0);
+    let vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
     let mut fan_of_vertex = vec![usize::MAX; vertices];
     for c in 0..3 * triangles.len() {
         let fan = fans.find(c);
@@ -204,10 +191,7 @@ mod tests {
         assert!(!is_manifold(&t));
         let added = split(&mut p, &mut t);
         assert!(is_manifold(&t), "{t:?}");
-        assert_eq!(
-            added, 4,
-            "two of the three sheets get their own copy of 0 and 1"
-        );
+        assert_eq!(added, 4, "two of the three sheets get their own copy of 0 and 1");
         assert_eq!(p.len(), 9);
     }
 

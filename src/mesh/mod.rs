@@ -56,20 +56,12 @@ impl Mesh {
             positions: positions.iter().map(|p| p.as_dvec3().to_array()).collect(),
             triangles: triangles.iter().map(|t| t.map(i64::from)).collect(),
         };
-        prepare::prepare(
-            soup,
-            std::path::Path::new("<in-memory mesh>"),
-            &LoadOptions::default(),
-        )
+        prepare::prepare(soup, std::path::Path::new("<in-memory mesh>"), &LoadOptions::default())
     }
 
     /// For code in this module that has already established every invariant of `Mesh`.
     pub(crate) fn from_valid_parts(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Mesh {
-        Mesh {
-            positions,
-            triangles,
-            normals: None,
-        }
+        Mesh { positions, triangles, normals: None }
     }
 
     /// Vertex positions.
@@ -131,11 +123,7 @@ impl Mesh {
                 sum[i as usize] += n;
             }
         }
-        self.normals = Some(
-            sum.into_iter()
-                .map(|n| n.try_normalize().unwrap_or(Vec3::Z))
-                .collect(),
-        );
+        self.normals = Some(sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Z)).collect());
     }
 
     /// The mesh with its normals computed.
@@ -152,10 +140,9 @@ impl Mesh {
 
 /// Axis-aligned bounds of a point set; `(+inf, -inf)` for an empty one.
 pub(crate) fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
-    points.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    )
+    points.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), &p| {
+        (lo.min(p), hi.max(p))
+    })
 }
 
 #[cfg(test)]
@@ -166,16 +153,13 @@ pub(crate) mod test_meshes {
 
     /// Path of a mesh in the shared test data.
     pub fn shared(name: &str) -> std::path::PathBuf {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data/meshes")
-            .join(name)
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/meshes").join(name)
     }
 
     /// An axis-aligned unit cube, 8 vertices and 12 outward-facing triangles.
     pub fn cube() -> Mesh {
-        let p = (0..8)
-            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-            .collect();
+        let p =
+            (0..8).map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32)).collect();
         #[rustfmt::skip]
         let t = vec![
             [0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], // z = 0, z = 1
@@ -236,9 +220,7 @@ mod tests {
             Vec3::new(0.5, -10.0, 0.0),
             Vec3::new(0.5, 0.1, 0.1),
         ];
-        let m = Mesh::new(p, vec![[0, 2, 1], [0, 1, 3]])
-            .expect("valid")
-            .with_normals();
+        let m = Mesh::new(p, vec![[0, 2, 1], [0, 1, 3]]).expect("valid").with_normals();
         let n0 = m.normals().expect("computed")[0];
         assert!(n0.z > 0.99, "the large face's normal dominates: {n0}");
     }

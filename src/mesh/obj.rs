@@ -15,16 +15,11 @@ use std::path::Path;
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
     let text = String::from_utf8_lossy(bytes);
     let geometry = geometry_lines(&text);
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, _) = tobj::load_obj_buf(&mut geometry.as_bytes(), &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })
-    .map_err(|e| Error::format(path, format!("not a valid OBJ file: {e}")))?;
+    let options =
+        tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
+    let (models, _) =
+        tobj::load_obj_buf(&mut geometry.as_bytes(), &options, |_| Err(tobj::LoadError::OpenFileFailed))
+            .map_err(|e| Error::format(path, format!("not a valid OBJ file: {e}")))?;
     concatenate(models, path)
 }
 
@@ -68,16 +63,9 @@ fn concatenate(models: Vec<tobj::Model>, path: &Path) -> Result<Soup> {
             ));
         }
         let offset = soup.positions.len() as i64;
-        soup.positions.extend(
-            m.positions
-                .chunks_exact(3)
-                .map(|p| [p[0], p[1], p[2]].map(f64::from)),
-        );
-        soup.triangles.extend(
-            m.indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]].map(|i| offset + i64::from(i))),
-        );
+        soup.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]].map(f64::from)));
+        soup.triangles
+            .extend(m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(|i| offset + i64::from(i))));
     }
     Ok(soup)
 }
@@ -93,26 +81,22 @@ mod tests {
 
     #[test]
     fn quads_and_polygons_are_fan_triangulated() {
-        let s = parse_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 2 0\nf 1 2 3 4\nf 4 3 5\n")
-            .expect("parses");
+        let s =
+            parse_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 2 0\nf 1 2 3 4\nf 4 3 5\n").expect("parses");
         assert_eq!(s.triangles, vec![[0, 1, 2], [0, 2, 3], [3, 2, 4]]);
-        let p = parse_str("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n")
-            .expect("parses");
+        let p = parse_str("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n").expect("parses");
         assert_eq!(p.triangles.len(), 3);
     }
 
     #[test]
     fn relative_indices_and_vt_vn_parts_are_handled() {
-        let s = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/99/7 -1//3\n")
-            .expect("parses");
+        let s = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/99/7 -1//3\n").expect("parses");
         assert_eq!(s.triangles, vec![[0, 1, 2]]);
     }
 
     #[test]
     fn out_of_range_position_index_is_an_error() {
-        let e = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err().to_string();
         assert!(e.starts_with("t.obj: not a valid OBJ file"), "{e}");
         assert!(parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n").is_err());
         assert!(parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n").is_err());

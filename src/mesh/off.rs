@@ -36,10 +36,7 @@ struct Lines<'a> {
 
 impl<'a> Lines<'a> {
     fn new(text: &'a str) -> Self {
-        Lines {
-            inner: text.lines().enumerate(),
-            number: 0,
-        }
+        Lines { inner: text.lines().enumerate(), number: 0 }
     }
 
     fn next(&mut self) -> Option<&'a str> {
@@ -64,24 +61,15 @@ fn header(lines: &mut Lines, path: &Path) -> Result<(usize, usize)> {
     let mut words = first.split_whitespace();
     let keyword = words.next().unwrap_or("");
     if !keyword.ends_with("OFF") {
-        return Err(Error::format(
-            path,
-            "not an OFF file: it does not start with 'OFF'",
-        ));
+        return Err(Error::format(path, "not an OFF file: it does not start with 'OFF'"));
     }
     // 4OFF and nOFF have other than three coordinates per vertex.
     if keyword.starts_with('4') || keyword.starts_with('n') {
-        return Err(Error::format(
-            path,
-            format!("'{keyword}' OFF variants are not supported"),
-        ));
+        return Err(Error::format(path, format!("'{keyword}' OFF variants are not supported")));
     }
     let mut rest: Vec<&str> = words.collect();
     if rest.first() == Some(&"BINARY") {
-        return Err(Error::format(
-            path,
-            "binary OFF is not supported; convert it to ASCII or PLY",
-        ));
+        return Err(Error::format(path, "binary OFF is not supported; convert it to ASCII or PLY"));
     }
     if rest.is_empty() {
         rest = lines.next().unwrap_or("").split_whitespace().collect();
@@ -101,34 +89,21 @@ fn vertex(lines: &mut Lines, i: usize, nv: usize, path: &Path) -> Result<[f64; 3
     let mut xyz = [0.0; 3];
     let mut words = line.split_whitespace();
     for c in &mut xyz {
-        *c = words.next().and_then(|w| w.parse().ok()).ok_or_else(|| {
-            lines.error(
-                path,
-                format!("vertex {i} needs three numbers, found '{line}'"),
-            )
-        })?;
+        *c = words
+            .next()
+            .and_then(|w| w.parse().ok())
+            .ok_or_else(|| lines.error(path, format!("vertex {i} needs three numbers, found '{line}'")))?;
     }
     Ok(xyz)
 }
 
-fn face(
-    lines: &mut Lines,
-    f: usize,
-    nf: usize,
-    out: &mut Vec<[i64; 3]>,
-    path: &Path,
-) -> Result<()> {
-    let line = lines
-        .next()
-        .ok_or_else(|| Error::format(path, format!("the file ends after {f} of {nf} faces")))?;
+fn face(lines: &mut Lines, f: usize, nf: usize, out: &mut Vec<[i64; 3]>, path: &Path) -> Result<()> {
+    let line =
+        lines.next().ok_or_else(|| Error::format(path, format!("the file ends after {f} of {nf} faces")))?;
     let bad = || lines.error(path, format!("face {f} is not 'n i1 … in': '{line}'"));
     let mut words = line.split_whitespace();
     let n: usize = words.next().and_then(|w| w.parse().ok()).ok_or_else(bad)?;
-    let indices: Vec<i64> = words
-        .take(n)
-        .map(|w| w.parse().ok())
-        .collect::<Option<_>>()
-        .ok_or_else(bad)?;
+    let indices: Vec<i64> = words.take(n).map(|w| w.parse().ok()).collect::<Option<_>>().ok_or_else(bad)?;
     if indices.len() != n {
         return Err(bad());
     }
@@ -162,35 +137,20 @@ mod tests {
 
     #[test]
     fn coff_vertex_colours_are_skipped() {
-        let s = parse_str("COFF\n3 1 0\n0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n")
-            .expect("parses");
+        let s =
+            parse_str("COFF\n3 1 0\n0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n").expect("parses");
         assert_eq!(s.positions[2], [0.0, 1.0, 0.0]);
     }
 
     #[test]
     fn truncated_and_malformed_files_are_errors_with_a_line_number() {
-        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 0 0\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("t.off: the file ends after 2 of 3 vertices"),
-            "{e}"
-        );
-        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("t.off: line 4: vertex 1 needs three numbers"),
-            "{e}"
-        );
-        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 0 0\n").unwrap_err().to_string();
+        assert!(e.contains("t.off: the file ends after 2 of 3 vertices"), "{e}");
+        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n").unwrap_err().to_string();
+        assert!(e.contains("t.off: line 4: vertex 1 needs three numbers"), "{e}");
+        let e = parse_str("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n").unwrap_err().to_string();
         assert!(e.contains("line 6: face 0"), "{e}");
-        assert!(parse_str("PLY\n")
-            .unwrap_err()
-            .to_string()
-            .contains("not an OFF file"));
+        assert!(parse_str("PLY\n").unwrap_err().to_string().contains("not an OFF file"));
         assert!(parse_str("OFF\nthree 1 0\n").is_err());
     }
 
@@ -200,10 +160,7 @@ mod tests {
         let path = dir.path().join("nan.off");
         std::fs::write(&path, "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n").expect("write");
         let e = load(&path).unwrap_err().to_string();
-        assert!(
-            e.contains("nan.off: vertex 1 has a non-finite coordinate"),
-            "{e}"
-        );
+        assert!(e.contains("nan.off: vertex 1 has a non-finite coordinate"), "{e}");
         assert_eq!(e.lines().count(), 1);
     }
 

@@ -67,11 +67,7 @@ pub fn prepare(soup: Soup, path: &Path, options: &LoadOptions) -> Result<Mesh> {
     let (positions, mut triangles, dropped) = drop_unused_vertices(positions, triangles);
     // Welded duplicates are unused by now; only report vertices the file left unused.
     if dropped > merged {
-        tracing::info!(
-            "{}: dropped {} vertices that no face uses",
-            path.display(),
-            dropped - merged
-        );
+        tracing::info!("{}: dropped {} vertices that no face uses", path.display(), dropped - merged);
     }
     let flipped = manifold::orient(&mut triangles);
     if flipped > 0 {
@@ -86,10 +82,8 @@ pub fn prepare(soup: Soup, path: &Path, options: &LoadOptions) -> Result<Mesh> {
 
 /// Positions as `f32`, or the first one that is not finite.
 fn checked_positions(positions: &[[f64; 3]], path: &Path) -> Result<Vec<Vec3>> {
-    let converted: Vec<Vec3> = positions
-        .iter()
-        .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
-        .collect();
+    let converted: Vec<Vec3> =
+        positions.iter().map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).collect();
     let bad = converted.iter().filter(|p| !p.is_finite()).count();
     if let Some(i) = converted.iter().position(|p| !p.is_finite()) {
         let [x, y, z] = positions[i];
@@ -106,11 +100,7 @@ fn checked_positions(positions: &[[f64; 3]], path: &Path) -> Result<Vec<Vec3>> {
 }
 
 /// Triangles as `u32`, or the first index that is out of range.
-fn checked_triangles(
-    triangles: &[[i64; 3]],
-    vertices: usize,
-    path: &Path,
-) -> Result<Vec<[u32; 3]>> {
+fn checked_triangles(triangles: &[[i64; 3]], vertices: usize, path: &Path) -> Result<Vec<[u32; 3]>> {
     let in_range = |i: i64| usize::try_from(i).is_ok_and(|i| i < vertices);
     for (f, t) in triangles.iter().enumerate() {
         if let Some(&i) = t.iter().find(|&&i| !in_range(i)) {
@@ -124,10 +114,7 @@ fn checked_triangles(
         }
     }
     if vertices > u32::MAX as usize {
-        return Err(Error::format(
-            path,
-            format!("{vertices} vertices are more than 2³² − 1"),
-        ));
+        return Err(Error::format(path, format!("{vertices} vertices are more than 2³² − 1")));
     }
     Ok(triangles.iter().map(|t| t.map(|i| i as u32)).collect())
 }
@@ -169,10 +156,7 @@ fn is_degenerate(positions: &[Vec3], t: &[u32; 3]) -> bool {
         return true;
     }
     let [a, b, c] = t.map(|i| positions[i as usize]);
-    let longest = (b - a)
-        .length_squared()
-        .max((c - b).length_squared())
-        .max((a - c).length_squared());
+    let longest = (b - a).length_squared().max((c - b).length_squared()).max((a - c).length_squared());
     (b - a).cross(c - a).length() <= 1e-7 * longest
 }
 
@@ -209,16 +193,10 @@ fn split_non_manifold(
 ) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
     let added = manifold::split(&mut positions, &mut triangles);
     if added > 0 {
-        tracing::warn!(
-            "{}: split non-manifold edges or vertices, adding {added} vertices",
-            path.display()
-        );
+        tracing::warn!("{}: split non-manifold edges or vertices, adding {added} vertices", path.display());
     }
     if !manifold::is_manifold(&triangles) {
-        return Err(Error::format(
-            path,
-            "the surface could not be made manifold",
-        ));
+        return Err(Error::format(path, "the surface could not be made manifold"));
     }
     Ok((positions, triangles))
 }
@@ -228,10 +206,7 @@ mod tests {
     use super::*;
 
     fn soup(positions: &[[f64; 3]], triangles: &[[i64; 3]]) -> Soup {
-        Soup {
-            positions: positions.to_vec(),
-            triangles: triangles.to_vec(),
-        }
+        Soup { positions: positions.to_vec(), triangles: triangles.to_vec() }
     }
 
     fn prep(s: Soup) -> Result<Mesh> {
@@ -244,13 +219,8 @@ mod tests {
     fn nan_vertex_is_one_error_naming_the_file() {
         let mut p = QUAD.to_vec();
         p[2][1] = f64::NAN;
-        let e = prep(soup(&p, &[[0, 1, 2], [0, 2, 3]]))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("m.ply: vertex 2 has a non-finite coordinate"),
-            "{e}"
-        );
+        let e = prep(soup(&p, &[[0, 1, 2], [0, 2, 3]])).unwrap_err().to_string();
+        assert!(e.starts_with("m.ply: vertex 2 has a non-finite coordinate"), "{e}");
         assert!(!e.contains('\n'));
     }
 
@@ -264,10 +234,7 @@ mod tests {
     #[test]
     fn out_of_range_and_negative_indices_are_errors() {
         let e = prep(soup(&QUAD, &[[0, 1, 4]])).unwrap_err().to_string();
-        assert!(
-            e.contains("m.ply: face 0 refers to vertex 4") && e.contains("4 vertices"),
-            "{e}"
-        );
+        assert!(e.contains("m.ply: face 0 refers to vertex 4") && e.contains("4 vertices"), "{e}");
         assert!(prep(soup(&QUAD, &[[0, -1, 2]])).is_err());
     }
 
@@ -281,21 +248,10 @@ mod tests {
     fn degenerate_and_duplicate_faces_are_dropped() {
         let mut p = QUAD.to_vec();
         p.push([0.5, 0.0, 0.0]); // on the edge 0–1: the face (0, 4, 1) has zero area
-        let m = prep(soup(
-            &p,
-            &[[0, 1, 2], [0, 2, 3], [0, 0, 1], [0, 4, 1], [2, 0, 1]],
-        ))
-        .unwrap();
+        let m = prep(soup(&p, &[[0, 1, 2], [0, 2, 3], [0, 0, 1], [0, 4, 1], [2, 0, 1]])).unwrap();
         assert_eq!(m.triangles(), &[[0, 1, 2], [0, 2, 3]]);
-        assert_eq!(
-            m.vertex_count(),
-            4,
-            "the vertex only a dropped face used is gone"
-        );
-        assert!(
-            prep(soup(&p, &[[0, 4, 1]])).is_err(),
-            "only degenerate faces"
-        );
+        assert_eq!(m.vertex_count(), 4, "the vertex only a dropped face used is gone");
+        assert!(prep(soup(&p, &[[0, 4, 1]])).is_err(), "only degenerate faces");
     }
 
     #[test]
@@ -308,14 +264,7 @@ mod tests {
 
     #[test]
     fn a_flipped_face_is_turned_to_match_the_majority() {
-        let p = [
-            QUAD[0],
-            QUAD[1],
-            QUAD[2],
-            QUAD[3],
-            [2., 0., 0.],
-            [2., 1., 0.],
-        ];
+        let p = [QUAD[0], QUAD[1], QUAD[2], QUAD[3], [2., 0., 0.], [2., 1., 0.]];
         let m = prep(soup(&p, &[[0, 1, 2], [0, 3, 2], [1, 4, 5], [1, 5, 2]])).unwrap();
         assert_eq!(m.triangles()[1], [0, 2, 3]);
     }

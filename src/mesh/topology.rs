@@ -28,12 +28,7 @@ pub(crate) fn edge_incidences(triangles: &[[u32; 3]]) -> Vec<EdgeIncidence> {
     for (f, t) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            out.push(EdgeIncidence {
-                lo: a.min(b),
-                hi: a.max(b),
-                face: f as u32,
-                forward: a < b,
-            });
+            out.push(EdgeIncidence { lo: a.min(b), hi: a.max(b), face: f as u32, forward: a < b });
         }
     }
     out.sort_unstable();
@@ -48,9 +43,7 @@ pub(crate) struct UnionFind {
 
 impl UnionFind {
     pub fn new(n: usize) -> Self {
-        UnionFind {
-            parent: (0..n).collect(),
-        }
+        UnionFind { parent: (0..n).collect() }
     }
 
     pub fn find(&mut self, mut x: usize) -> usize {
@@ -70,10 +63,7 @@ impl UnionFind {
 
 /// The undirected edges `[lo, hi]` (`lo < hi`), sorted.
 pub fn edges(mesh: &Mesh) -> Vec<[u32; 2]> {
-    let mut e: Vec<[u32; 2]> = edge_incidences(mesh.triangles())
-        .iter()
-        .map(|i| [i.lo, i.hi])
-        .collect();
+    let mut e: Vec<[u32; 2]> = edge_incidences(mesh.triangles()).iter().map(|i| [i.lo, i.hi]).collect();
     e.dedup();
     e
 }
@@ -150,10 +140,7 @@ pub fn one_rings(mesh: &Mesh) -> VertexRings {
         rest = &rest[split..];
     }
     offsets.push(neighbours.len());
-    VertexRings {
-        offsets,
-        neighbours,
-    }
+    VertexRings { offsets, neighbours }
 }
 
 /// Appends the neighbours of one vertex by chaining its `(v, from, to)` steps (sorted by
@@ -163,11 +150,7 @@ fn walk_fan(steps: &[(u32, u32, u32)], arrivals: &mut Vec<u32>, out: &mut Vec<u3
     arrivals.clear();
     arrivals.extend(steps.iter().map(|s| s.2));
     arrivals.sort_unstable();
-    let start = steps
-        .iter()
-        .map(|s| s.1)
-        .find(|b| arrivals.binary_search(b).is_err())
-        .unwrap_or(first.1);
+    let start = steps.iter().map(|s| s.1).find(|b| arrivals.binary_search(b).is_err()).unwrap_or(first.1);
     let mut at = start;
     out.push(at);
     // A manifold fan takes each step once; the bound guards against anything else.
@@ -210,10 +193,7 @@ pub fn connected_components(mesh: &Mesh) -> Components {
         }
         vertex_component.push(label[root]);
     }
-    Components {
-        count: count as usize,
-        vertex_component,
-    }
+    Components { count: count as usize, vertex_component }
 }
 
 /// V − E + F; 2 − 2g for a closed connected surface of genus g.
@@ -283,10 +263,7 @@ mod tests {
     #[test]
     fn cube_is_a_closed_sphere() {
         let s = summary(&cube());
-        assert_eq!(
-            (s.vertices, s.faces, s.edges, s.boundary_edges),
-            (8, 12, 18, 0)
-        );
+        assert_eq!((s.vertices, s.faces, s.edges, s.boundary_edges), (8, 12, 18, 0));
         assert_eq!((s.components, s.euler_characteristic), (1, 2));
         assert!(is_manifold(&cube()));
     }
@@ -309,10 +286,7 @@ mod tests {
         assert_eq!(centre.len(), 6);
         let p = g.positions();
         for w in 0..6 {
-            let (a, b) = (
-                p[centre[w] as usize] - p[4],
-                p[centre[(w + 1) % 6] as usize] - p[4],
-            );
+            let (a, b) = (p[centre[w] as usize] - p[4], p[centre[(w + 1) % 6] as usize] - p[4]);
             assert!(a.cross(b).z > 0.0, "ring {centre:?} turns clockwise at {w}");
         }
         // Corner 0 sees the boundary neighbours 1 and 3 at the ends of its open fan.
@@ -323,12 +297,7 @@ mod tests {
     fn components_count_separate_pieces() {
         let mut p = cube().positions().to_vec();
         let mut t = cube().triangles().to_vec();
-        p.extend(
-            cube()
-                .positions()
-                .iter()
-                .map(|q| *q + glam::Vec3::splat(3.0)),
-        );
+        p.extend(cube().positions().iter().map(|q| *q + glam::Vec3::splat(3.0)));
         t.extend(cube().triangles().iter().map(|f| f.map(|i| i + 8)));
         let two = Mesh::new(p, t).expect("valid");
         let c = connected_components(&two);

@@ -19,14 +19,9 @@ fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, usize) {
     // +0.0 and −0.0 are the same point but have different bits.
     let key = |p: Vec3| (p + Vec3::ZERO).to_array().map(f32::to_bits);
     let mut first = HashMap::with_capacity(positions.len());
-    let remap: Vec<u32> = (0..positions.len() as u32)
-        .map(|i| *first.entry(key(positions[i as usize])).or_insert(i))
-        .collect();
-    let merged = remap
-        .iter()
-        .enumerate()
-        .filter(|&(i, &r)| r as usize != i)
-        .count();
+    let remap: Vec<u32> =
+        (0..positions.len() as u32).map(|i| *first.entry(key(positions[i as usize])).or_insert(i)).collect();
+    let merged = remap.iter().enumerate().filter(|&(i, &r)| r as usize != i).count();
     (remap, merged)
 }
 
@@ -78,12 +73,7 @@ mod tests {
 
     #[test]
     fn tolerance_weld_merges_near_points_only() {
-        let p = [
-            Vec3::ZERO,
-            Vec3::new(1e-4, 0.0, 0.0),
-            Vec3::new(0.1, 0.0, 0.0),
-            Vec3::new(-5e-5, 0.0, 0.0),
-        ];
+        let p = [Vec3::ZERO, Vec3::new(1e-4, 0.0, 0.0), Vec3::new(0.1, 0.0, 0.0), Vec3::new(-5e-5, 0.0, 0.0)];
         assert_eq!(weld(&p, 2e-4), (vec![0, 0, 2, 0], 2));
     }
 

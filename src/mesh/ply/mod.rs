@@ -56,15 +56,8 @@ impl Scalar {
 /// One property of an element.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) enum Property {
-    Scalar {
-        name: String,
-        ty: Scalar,
-    },
-    List {
-        name: String,
-        count: Scalar,
-        item: Scalar,
-    },
+    Scalar { name: String, ty: Scalar },
+    List { name: String, count: Scalar, item: Scalar },
 }
 
 impl Property {
@@ -121,12 +114,8 @@ pub(crate) fn parse_header(bytes: &[u8]) -> Result<Header, String> {
     if lines.next() != Some("ply") {
         return Err("not a PLY file: it does not start with 'ply'".into());
     }
-    let mut header = Header {
-        encoding: Encoding::Ascii,
-        elements: Vec::new(),
-        comments: Vec::new(),
-        body_offset: end,
-    };
+    let mut header =
+        Header { encoding: Encoding::Ascii, elements: Vec::new(), comments: Vec::new(), body_offset: end };
     let mut format_seen = false;
     for line in lines {
         let mut words = line.split_whitespace();
@@ -135,17 +124,12 @@ pub(crate) fn parse_header(bytes: &[u8]) -> Result<Header, String> {
                 header.encoding = parse_format(words.next())?;
                 format_seen = true;
             }
-            Some("comment") => header
-                .comments
-                .push(line["comment".len()..].trim().to_string()),
+            Some("comment") => header.comments.push(line["comment".len()..].trim().to_string()),
             Some("obj_info") | Some("end_header") | None => {}
             Some("element") => header.elements.push(parse_element(words)?),
             Some("property") => {
                 let property = parse_property(words)?;
-                let element = header
-                    .elements
-                    .last_mut()
-                    .ok_or("a PLY property precedes every element")?;
+                let element = header.elements.last_mut().ok_or("a PLY property precedes every element")?;
                 element.properties.push(property);
             }
             Some(other) => return Err(format!("unknown PLY header line '{other}'")),
@@ -180,11 +164,7 @@ fn parse_element<'a>(mut words: impl Iterator<Item = &'a str>) -> Result<Element
         .next()
         .and_then(|w| w.parse().ok())
         .ok_or_else(|| format!("PLY element '{name}' has no valid count"))?;
-    Ok(Element {
-        name,
-        count,
-        properties: Vec::new(),
-    })
+    Ok(Element { name, count, properties: Vec::new() })
 }
 
 fn parse_property<'a>(mut words: impl Iterator<Item = &'a str>) -> Result<Property, String> {
@@ -198,17 +178,11 @@ fn parse_property<'a>(mut words: impl Iterator<Item = &'a str>) -> Result<Proper
         if !count.is_integer() {
             return Err("a PLY list count must have an integer type".into());
         }
-        let name = words
-            .next()
-            .ok_or("a PLY list property has no name")?
-            .to_string();
+        let name = words.next().ok_or("a PLY list property has no name")?.to_string();
         Property::List { name, count, item }
     } else {
         let ty = ty(first)?;
-        let name = words
-            .next()
-            .ok_or("a PLY property has no name")?
-            .to_string();
+        let name = words.next().ok_or("a PLY property has no name")?.to_string();
         Property::Scalar { name, ty }
     };
     Ok(property)
@@ -230,11 +204,7 @@ mod tests {
         assert_eq!(h.elements[0].min_binary_size(), 4 + 8 + 1);
         assert_eq!(
             h.elements[1].properties[0],
-            Property::List {
-                name: "vertex_indices".into(),
-                count: Scalar::U8,
-                item: Scalar::I32
-            }
+            Property::List { name: "vertex_indices".into(), count: Scalar::U8, item: Scalar::I32 }
         );
         assert_eq!(&text[h.body_offset..], b"BODY");
     }
@@ -250,11 +220,7 @@ mod tests {
             b"ply\nformat ascii 1.0\nelement vertex 3\n",
             b"obj\nformat ascii 1.0\nend_header\n",
         ] {
-            assert!(
-                parse_header(bad).is_err(),
-                "{}",
-                String::from_utf8_lossy(bad)
-            );
+            assert!(parse_header(bad).is_err(), "{}", String::from_utf8_lossy(bad));
         }
     }
 }

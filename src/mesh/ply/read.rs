@@ -52,8 +52,7 @@ fn read_element(element: &Element, values: &mut Values, soup: &mut Soup) -> Resu
             let mut row = Vec::new();
             for i in 0..element.count {
                 read_row(element, values, &mut row).map_err(|m| format!("{}: {m}", at(i)))?;
-                soup.positions
-                    .push([x, y, z].map(|k| row[k].first().copied().unwrap_or(0.0)));
+                soup.positions.push([x, y, z].map(|k| row[k].first().copied().unwrap_or(0.0)));
             }
         }
         "face" => {
@@ -112,18 +111,11 @@ impl<'a> Values<'a> {
     fn new(body: &'a [u8], encoding: Encoding) -> Result<Self, String> {
         Ok(match encoding {
             Encoding::Ascii => {
-                let text =
-                    std::str::from_utf8(body).map_err(|_| "the ASCII PLY body is not text")?;
+                let text = std::str::from_utf8(body).map_err(|_| "the ASCII PLY body is not text")?;
                 Values::Ascii(text.split_ascii_whitespace())
             }
-            Encoding::BinaryLittleEndian => Values::Binary {
-                bytes: body,
-                big_endian: false,
-            },
-            Encoding::BinaryBigEndian => Values::Binary {
-                bytes: body,
-                big_endian: true,
-            },
+            Encoding::BinaryLittleEndian => Values::Binary { bytes: body, big_endian: false },
+            Encoding::BinaryBigEndian => Values::Binary { bytes: body, big_endian: true },
         })
     }
 
@@ -188,10 +180,7 @@ mod tests {
     #[test]
     fn ascii_polygon_with_extra_properties_and_elements() {
         let s = parse_bytes(ASCII.as_bytes()).expect("parses");
-        assert_eq!(
-            s.positions,
-            vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]
-        );
+        assert_eq!(s.positions, vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]);
         assert_eq!(s.triangles, vec![[0, 1, 2], [0, 2, 3]]);
     }
 
@@ -207,11 +196,7 @@ mod tests {
         )
         .into_bytes();
         let put = |bytes: &mut Vec<u8>, le: Vec<u8>| {
-            bytes.extend(if big_endian {
-                le.into_iter().rev().collect()
-            } else {
-                le
-            })
+            bytes.extend(if big_endian { le.into_iter().rev().collect() } else { le })
         };
         for (x, y, z) in [(0.0f32, 0.0f32, 0.0f64), (1.0, 0.0, 0.5), (0.0, 2.0, -1.0)] {
             put(&mut b, x.to_le_bytes().to_vec());
@@ -237,11 +222,7 @@ mod tests {
     fn binary_both_endians_skip_other_properties_and_elements() {
         for big in [false, true] {
             let s = parse_bytes(&binary(big)).expect("parses");
-            assert_eq!(
-                s.positions,
-                vec![[0., 0., 0.], [1., 0., 0.5], [0., 2., -1.]],
-                "big={big}"
-            );
+            assert_eq!(s.positions, vec![[0., 0., 0.], [1., 0., 0.5], [0., 2., -1.]], "big={big}");
             assert_eq!(s.triangles, vec![[2, 1, 0]]);
         }
     }
@@ -250,10 +231,7 @@ mod tests {
     fn truncated_binary_is_an_error_naming_the_element() {
         let b = binary(false);
         let e = parse_bytes(&b[..b.len() - 3]).unwrap_err().to_string();
-        assert!(
-            e.starts_with("t.ply: PLY face 0 of 1: the file ends early"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.ply: PLY face 0 of 1: the file ends early"), "{e}");
     }
 
     #[test]

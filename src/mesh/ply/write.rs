@@ -58,23 +58,15 @@ pub struct VertexProperty<'a> {
 /// `properties` in order; faces as `list uchar int vertex_indices`. Each comment becomes a
 /// `comment` line. Fails before touching `path` if a property's length differs from the
 /// vertex count, a name is invalid or repeated, or a comment spans lines.
-pub fn write(
-    path: &Path,
-    mesh: &Mesh,
-    properties: &[VertexProperty],
-    comments: &[&str],
-) -> Result<()> {
+pub fn write(path: &Path, mesh: &Mesh, properties: &[VertexProperty], comments: &[&str]) -> Result<()> {
     check(path, mesh, properties, comments)?;
     let header = header(mesh, properties, comments);
     write_with_temp(path, |tmp| {
         let file = std::fs::File::create(tmp).map_err(|e| Error::io(path, e))?;
         let mut out = std::io::BufWriter::new(file);
-        out.write_all(header.as_bytes())
-            .map_err(|e| Error::io(path, e))?;
+        out.write_all(header.as_bytes()).map_err(|e| Error::io(path, e))?;
         write_body(&mut out, mesh, properties).map_err(|e| Error::io(path, e))?;
-        out.into_inner()
-            .map(|_| ())
-            .map_err(|e| Error::io(path, e.into_error()))
+        out.into_inner().map(|_| ()).map_err(|e| Error::io(path, e.into_error()))
     })
 }
 
@@ -84,9 +76,7 @@ fn check(path: &Path, mesh: &Mesh, properties: &[VertexProperty], comments: &[&s
     let invalid = |m: String| Err(Error::invalid(format!("{}: {m}", path.display())));
     for (k, p) in properties.iter().enumerate() {
         let valid_name = !p.name.is_empty()
-            && p.name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+            && p.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
             && !RESERVED.contains(&p.name);
         if !valid_name {
             return invalid(format!("'{}' is not a usable PLY property name", p.name));
@@ -115,29 +105,18 @@ fn header(mesh: &Mesh, properties: &[VertexProperty], comments: &[&str]) -> Stri
         h += &format!("comment {c}\n");
     }
     h += &format!("element vertex {}\n", mesh.vertex_count());
-    let coordinates = if mesh.normals().is_some() {
-        &RESERVED[..]
-    } else {
-        &RESERVED[..3]
-    };
+    let coordinates = if mesh.normals().is_some() { &RESERVED[..] } else { &RESERVED[..3] };
     for name in coordinates {
         h += &format!("property float {name}\n");
     }
     for p in properties {
         h += &format!("property {} {}\n", p.data.type_name(), p.name);
     }
-    h += &format!(
-        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        mesh.face_count()
-    );
+    h += &format!("element face {}\nproperty list uchar int vertex_indices\nend_header\n", mesh.face_count());
     h
 }
 
-fn write_body(
-    out: &mut impl Write,
-    mesh: &Mesh,
-    properties: &[VertexProperty],
-) -> std::io::Result<()> {
+fn write_body(out: &mut impl Write, mesh: &Mesh, properties: &[VertexProperty]) -> std::io::Result<()> {
     let mut row = Vec::with_capacity(64);
     for (i, p) in mesh.positions().iter().enumerate() {
         row.clear();
@@ -177,47 +156,24 @@ mod tests {
         let label: Vec<u32> = (0..n as u32).collect();
         let flag = vec![7u8; n];
         let props = [
-            VertexProperty {
-                name: "u",
-                data: PropertyData::Float(&u),
-            },
-            VertexProperty {
-                name: "texton",
-                data: PropertyData::UInt(&label),
-            },
-            VertexProperty {
-                name: "flag",
-                data: PropertyData::UChar(&flag),
-            },
+            VertexProperty { name: "u", data: PropertyData::Float(&u) },
+            VertexProperty { name: "texton", data: PropertyData::UInt(&label) },
+            VertexProperty { name: "flag", data: PropertyData::UChar(&flag) },
         ];
         write(&path, &mesh, &props, &["btfsynth test", "seed 7"]).expect("writes");
         let bytes = std::fs::read(&path).expect("reads");
         let soup = read::parse(&bytes, &path).expect("parses");
-        let positions: Vec<[f64; 3]> = mesh
-            .positions()
-            .iter()
-            .map(|p| p.to_array().map(f64::from))
-            .collect();
+        let positions: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.to_array().map(f64::from)).collect();
         assert_eq!(soup.positions, positions);
         let triangles: Vec<[i64; 3]> = mesh.triangles().iter().map(|t| t.map(i64::from)).collect();
         assert_eq!(soup.triangles, triangles);
         let header = parse_header(&bytes).expect("header");
         assert_eq!(header.comments, vec!["btfsynth test", "seed 7"]);
-        let names: Vec<&str> = header.elements[0]
-            .properties
-            .iter()
-            .map(|p| p.name())
-            .collect();
-        assert_eq!(
-            names,
-            ["x", "y", "z", "nx", "ny", "nz", "u", "texton", "flag"]
-        );
+        let names: Vec<&str> = header.elements[0].properties.iter().map(|p| p.name()).collect();
+        assert_eq!(names, ["x", "y", "z", "nx", "ny", "nz", "u", "texton", "flag"]);
         assert_eq!(
             header.elements[0].properties[7],
-            Property::Scalar {
-                name: "texton".into(),
-                ty: Scalar::U32
-            }
+            Property::Scalar { name: "texton".into(), ty: Scalar::U32 }
         );
         let leftovers: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
         assert_eq!(leftovers.len(), 1, "no temporary file is left behind");
@@ -231,33 +187,13 @@ mod tests {
         let short = [1.0f32; 3];
         let ok = [0u8; 8];
         let cases: [(&[VertexProperty], &[&str]); 4] = [
-            (
-                &[VertexProperty {
-                    name: "u",
-                    data: PropertyData::Float(&short),
-                }],
-                &[],
-            ),
-            (
-                &[VertexProperty {
-                    name: "has space",
-                    data: PropertyData::UChar(&ok),
-                }],
-                &[],
-            ),
-            (
-                &[VertexProperty {
-                    name: "x",
-                    data: PropertyData::UChar(&ok),
-                }],
-                &[],
-            ),
+            (&[VertexProperty { name: "u", data: PropertyData::Float(&short) }], &[]),
+            (&[VertexProperty { name: "has space", data: PropertyData::UChar(&ok) }], &[]),
+            (&[VertexProperty { name: "x", data: PropertyData::UChar(&ok) }], &[]),
             (&[], &["two\nlines"]),
         ];
         for (props, comments) in cases {
-            let e = write(&path, &mesh, props, comments)
-                .unwrap_err()
-                .to_string();
+            let e = write(&path, &mesh, props, comments).unwrap_err().to_string();
             assert!(e.contains("cube.ply"), "{e}");
             assert!(!path.exists());
         }

@@ -242,12 +242,7 @@ impl Halfedges {
     pub fn flip(&mut self, h: u32) {
         let o = self.opp(h);
         let (n, no, po) = (next(h), next(o), prev(o));
-        let (a, b, c, d) = (
-            self.from(h),
-            self.from(n),
-            self.from(prev(h)),
-            self.from(po),
-        );
+        let (a, b, c, d) = (self.from(h), self.from(n), self.from(prev(h)), self.from(po));
         let (x1, x3) = (self.opp(n), self.opp(no));
         // Faces become (a, d, c) and (b, c, d), reusing every halfedge slot.
         self.from[n as usize] = d;
@@ -286,10 +281,7 @@ impl Halfedges {
             }
         }
         self.vertex_alive[remove as usize] = false;
-        let third = [
-            self.from(prev(h)),
-            if o == NONE { NONE } else { self.from(prev(o)) },
-        ];
+        let third = [self.from(prev(h)), if o == NONE { NONE } else { self.from(prev(o)) }];
         for v in [keep, third[0], third[1]] {
             if v != NONE {
                 self.reset_out(v, &touched, buf);
@@ -325,9 +317,8 @@ impl Halfedges {
 /// Pairs every halfedge with the one running the opposite way along the same edge.
 fn pair_opposites(from: &[u32]) -> Option<Vec<u32>> {
     let to = |h: usize| from[next(h as u32) as usize];
-    let mut keyed: Vec<(u32, u32, u32)> = (0..from.len())
-        .map(|h| (from[h].min(to(h)), from[h].max(to(h)), h as u32))
-        .collect();
+    let mut keyed: Vec<(u32, u32, u32)> =
+        (0..from.len()).map(|h| (from[h].min(to(h)), from[h].max(to(h)), h as u32)).collect();
     keyed.sort_unstable();
     let mut opp = vec![NONE; from.len()];
     for group in keyed.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
@@ -402,9 +393,7 @@ pub(crate) mod tests {
         check(&he);
         let mut buf = Vec::new();
         assert_eq!(he.valence(m, &mut buf), 4);
-        let b = (0..he.halfedge_count())
-            .find(|&h| he.opp(h) == NONE)
-            .expect("boundary");
+        let b = (0..he.halfedge_count()).find(|&h| he.opp(h) == NONE).expect("boundary");
         let m2 = he.split(b, (he.p(he.from(b)) + he.p(he.to(b))) / 2.0);
         check(&he);
         assert!(he.is_boundary_vertex(m2));
@@ -419,10 +408,7 @@ pub(crate) mod tests {
         check(&he);
         // The square 0 1 / 2 3 had the diagonal 0–3; now it has 1–2.
         let edges = topology::edges(&to_mesh(&he));
-        assert!(
-            edges.contains(&[1, 2]) && !edges.contains(&[0, 3]),
-            "{edges:?}"
-        );
+        assert!(edges.contains(&[1, 2]) && !edges.contains(&[0, 3]), "{edges:?}");
     }
 
     #[test]
@@ -450,9 +436,7 @@ pub(crate) mod tests {
         let mut he = Halfedges::from_mesh(&m).expect("manifold");
         let mut buf = Vec::new();
         // The boundary edge 1 → 2 along y = 0: vertex 1 is removed into 2.
-        let h = (0..he.halfedge_count())
-            .find(|&h| he.from(h) == 1 && he.to(h) == 2)
-            .expect("edge");
+        let h = (0..he.halfedge_count()).find(|&h| he.from(h) == 1 && he.to(h) == 2).expect("edge");
         assert_eq!(he.opp(h), NONE);
         he.collapse(h, 1, 2, &mut buf);
         check(&he);

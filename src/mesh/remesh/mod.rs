@@ -40,21 +40,14 @@ pub struct RemeshParams {
 impl RemeshParams {
     /// Aim for edges of length `length`.
     pub fn edge_length(length: f32) -> RemeshParams {
-        RemeshParams {
-            target_edge_length: length,
-            iterations: 10,
-            vertex_count: None,
-        }
+        RemeshParams { target_edge_length: length, iterations: 10, vertex_count: None }
     }
 
     /// Aim for about `n` vertices on `mesh`. Equilateral triangles of side L have area
     /// (√3/4)L² and there are about two per vertex, so L = √(2A / (√3 n)) for area A.
     pub fn vertex_count(mesh: &Mesh, n: usize) -> RemeshParams {
         let l = (2.0 * mesh.surface_area() / (3f64.sqrt() * n.max(1) as f64)).sqrt();
-        RemeshParams {
-            vertex_count: Some(n),
-            ..RemeshParams::edge_length(l as f32)
-        }
+        RemeshParams { vertex_count: Some(n), ..RemeshParams::edge_length(l as f32) }
     }
 }
 
@@ -66,9 +59,7 @@ pub fn remesh_to_edge_length(mesh: &Mesh, length: f32) -> Result<Mesh> {
 /// Remeshes `mesh` to about `n` vertices (10 iterations).
 pub fn remesh_to_vertex_count(mesh: &Mesh, n: usize) -> Result<Mesh> {
     if n < 4 {
-        return Err(Error::invalid(format!(
-            "cannot remesh to {n} vertices: at least 4 are needed"
-        )));
+        return Err(Error::invalid(format!("cannot remesh to {n} vertices: at least 4 are needed")));
     }
     remesh(mesh, &RemeshParams::vertex_count(mesh, n), &Silent)
 }
@@ -115,9 +106,7 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams, progress: &dyn Progress) -> Re
 
 fn check_length(mesh: &Mesh, length: f32) -> Result<()> {
     if !(length.is_finite() && length > 0.0) {
-        return Err(Error::invalid(format!(
-            "the target edge length must be positive, not {length}"
-        )));
+        return Err(Error::invalid(format!("the target edge length must be positive, not {length}")));
     }
     let estimate = 2.0 * mesh.surface_area() / (3f64.sqrt() * f64::from(length).powi(2));
     if estimate > MAX_VERTICES {
@@ -151,10 +140,7 @@ mod tests {
     fn assert_same_topology(a: &Mesh, b: &Mesh) {
         let (sa, sb) = (topology::summary(a), topology::summary(b));
         assert_eq!(sa.components, sb.components, "{sa} vs {sb}");
-        assert_eq!(
-            sa.euler_characteristic, sb.euler_characteristic,
-            "{sa} vs {sb}"
-        );
+        assert_eq!(sa.euler_characteristic, sb.euler_characteristic, "{sa} vs {sb}");
         assert!(topology::is_manifold(b));
     }
 
@@ -164,10 +150,7 @@ mod tests {
         let fine = remesh_to_edge_length(&c, 0.1).expect("remeshes");
         assert_same_topology(&c, &fine);
         let s = edge_length_stats(&fine);
-        assert!(
-            (s.mean - 0.1).abs() < 0.02 && s.coefficient_of_variation < 0.35,
-            "{s}"
-        );
+        assert!((s.mean - 0.1).abs() < 0.02 && s.coefficient_of_variation < 0.35, "{s}");
         // Every vertex stays on the cube's surface.
         for p in fine.positions() {
             let d = (*p - glam::Vec3::splat(0.5)).abs().max_element();
@@ -182,10 +165,8 @@ mod tests {
         assert_same_topology(&g, &fine);
         let boundary = topology::boundary_vertices(&fine);
         for (p, on) in fine.positions().iter().zip(boundary) {
-            let on_square = p.x.abs() < 1e-6
-                || p.y.abs() < 1e-6
-                || (p.x - 1.0).abs() < 1e-6
-                || (p.y - 1.0).abs() < 1e-6;
+            let on_square =
+                p.x.abs() < 1e-6 || p.y.abs() < 1e-6 || (p.x - 1.0).abs() < 1e-6 || (p.y - 1.0).abs() < 1e-6;
             assert_eq!(on, on_square, "{p}");
             assert!(p.z.abs() < 1e-6);
         }
@@ -204,18 +185,10 @@ mod tests {
 
     #[test]
     fn tiny_meshes_survive_coarse_and_fine_targets() {
-        let triangle = Mesh::new(
-            vec![glam::Vec3::ZERO, glam::Vec3::X, glam::Vec3::Y],
-            vec![[0, 1, 2]],
-        )
-        .expect("valid");
+        let triangle =
+            Mesh::new(vec![glam::Vec3::ZERO, glam::Vec3::X, glam::Vec3::Y], vec![[0, 1, 2]]).expect("valid");
         let tetrahedron = Mesh::new(
-            vec![
-                glam::Vec3::ZERO,
-                glam::Vec3::X,
-                glam::Vec3::Y,
-                glam::Vec3::Z,
-            ],
+            vec![glam::Vec3::ZERO, glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z],
             vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
         )
         .expect("valid");
@@ -242,10 +215,7 @@ mod tests {
         let fine = remesh_to_vertex_count(&bunny, 50_000).expect("remeshes");
         let elapsed = start.elapsed();
         let s = edge_length_stats(&fine);
-        eprintln!(
-            "bunny-1k8 → {} vertices in {elapsed:?}: {s}",
-            fine.vertex_count()
-        );
+        eprintln!("bunny-1k8 → {} vertices in {elapsed:?}: {s}", fine.vertex_count());
         let n = fine.vertex_count() as f64;
         assert!((n - 50_000.0).abs() < 0.15 * 50_000.0, "{n} vertices");
         assert!(s.coefficient_of_variation < 0.35, "{s}");
@@ -258,9 +228,6 @@ mod tests {
         let fine = remesh_to_vertex_count(&teapot, 5_000).expect("remeshes");
         assert_same_topology(&teapot, &fine);
         let (before, after) = (topology::summary(&teapot), topology::summary(&fine));
-        assert!(
-            after.boundary_edges >= before.boundary_edges,
-            "{before} → {after}"
-        );
+        assert!(after.boundary_edges >= before.boundary_edges, "{before} → {after}");
     }
 }

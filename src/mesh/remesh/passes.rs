@@ -89,12 +89,7 @@ fn edges_of_faces_around(he: &Halfedges, v: u32) -> Vec<u32> {
 /// Collapses edges shorter than `low` into one of their ends, where the collapse keeps
 /// the surface manifold, unfolded, its boundary in place, and creates no edge longer than
 /// `high`. The end of lower valence is removed. Returns the number of collapses.
-pub(crate) fn collapse_short_edges(
-    he: &mut Halfedges,
-    low: f32,
-    high: f32,
-    s: &mut Scratch,
-) -> usize {
+pub(crate) fn collapse_short_edges(he: &mut Halfedges, low: f32, high: f32, s: &mut Scratch) -> usize {
     let mut collapses = 0;
     for h in 0..he.halfedge_count() {
         if !is_edge_representative(he, h) || length_squared(he, h) >= low * low {
@@ -102,11 +97,7 @@ pub(crate) fn collapse_short_edges(
         }
         let (a, b) = (he.from(h), he.to(h));
         let (va, vb) = (he.valence(a, &mut s.a), he.valence(b, &mut s.a));
-        let order = if va <= vb {
-            [(a, b), (b, a)]
-        } else {
-            [(b, a), (a, b)]
-        };
+        let order = if va <= vb { [(a, b), (b, a)] } else { [(b, a), (a, b)] };
         for (remove, keep) in order {
             if collapse_ok(he, h, remove, keep, low, high, s) {
                 he.collapse(h, remove, keep, &mut s.a);
@@ -119,15 +110,7 @@ pub(crate) fn collapse_short_edges(
 }
 
 /// Whether removing `remove` into `keep` (the ends of `h`) is allowed.
-fn collapse_ok(
-    he: &Halfedges,
-    h: u32,
-    remove: u32,
-    keep: u32,
-    low: f32,
-    high: f32,
-    s: &mut Scratch,
-) -> bool {
+fn collapse_ok(he: &Halfedges, h: u32, remove: u32, keep: u32, low: f32, high: f32, s: &mut Scratch) -> bool {
     let o = he.opp(h);
     let boundary_edge = o == NONE;
     if he.is_boundary_vertex(remove) && !(boundary_edge && boundary_is_straight(he, remove, s)) {
@@ -144,24 +127,14 @@ fn collapse_ok(
     if s.a.len() + s.b.len() - common - 2 < min_valence(keep_boundary) {
         return false;
     }
-    let opposite = [
-        he.from(prev(h)),
-        if boundary_edge {
-            NONE
-        } else {
-            he.from(prev(o))
-        },
-    ];
+    let opposite = [he.from(prev(h)), if boundary_edge { NONE } else { he.from(prev(o)) }];
     for v in opposite.into_iter().filter(|&v| v != NONE) {
         if he.valence(v, &mut s.c) - 1 < min_valence(he.is_boundary_vertex(v)) {
             return false;
         }
     }
     let q = he.p(keep);
-    if s.a
-        .iter()
-        .any(|&x| x != keep && q.distance_squared(he.p(x)) > high * high)
-    {
+    if s.a.iter().any(|&x| x != keep && q.distance_squared(he.p(x)) > high * high) {
         return false;
     }
     !collapse_folds(he, h, remove, q, low, s)
@@ -192,15 +165,12 @@ fn collapse_folds(he: &Halfedges, h: u32, remove: u32, q: Vec3, low: f32, s: &mu
     let dying = [h / 3, he.opp(h) / 3];
     he.outgoing(remove, &mut s.c);
     let p = he.p(remove);
-    s.c.iter()
-        .filter(|&&e| !dying.contains(&(e / 3)))
-        .any(|&e| {
-            let (x, y) = (he.p(he.to(e)), he.p(he.from(prev(e))));
-            let before = (x - p).cross(y - p);
-            let after = (x - q).cross(y - q);
-            after.length() <= 1e-3 * low * low
-                || before.dot(after) <= FOLD_COS * before.length() * after.length()
-        })
+    s.c.iter().filter(|&&e| !dying.contains(&(e / 3))).any(|&e| {
+        let (x, y) = (he.p(he.to(e)), he.p(he.from(prev(e))));
+        let before = (x - p).cross(y - p);
+        let after = (x - q).cross(y - q);
+        after.length() <= 1e-3 * low * low || before.dot(after) <= FOLD_COS * before.length() * after.length()
+    })
 }
 
 /// Flips edges where that brings the four vertices involved closer to valence 6 (4 on a
@@ -210,25 +180,23 @@ pub(crate) fn equalize_valences(he: &mut Halfedges, s: &mut Scratch) -> usize {
     // them current rather than walk four rings for every edge.
     let mut valence: Vec<i64> = (0..he.pos.len() as u32)
         .into_par_iter()
-        .map_init(Vec::new, |ring, v| {
-            if he.vertex_alive[v as usize] {
-                he.valence(v, ring) as i64
-            } else {
-                0
-            }
-        })
+        .map_init(
+            Vec::new,
+            |ring, v| {
+                if he.vertex_alive[v as usize] {
+                    he.valence(v, ring) as i64
+                } else {
+                    0
+                }
+            },
+        )
         .collect();
     let mut flips = 0;
     for h in 0..he.halfedge_count() {
         if !is_edge_representative(he, h) || he.opp(h) == NONE {
             continue;
         }
-        let quad = [
-            he.from(h),
-            he.to(h),
-            he.from(prev(h)),
-            he.from(prev(he.opp(h))),
-        ];
+        let quad = [he.from(h), he.to(h), he.from(prev(h)), he.from(prev(he.opp(h)))];
         if flip_improves(he, quad, &valence) && !flip_exists(he, quad, s) && !flip_folds(he, h) {
             he.flip(h);
             for (v, change) in quad.into_iter().zip([-1, -1, 1, 1]) {
@@ -367,10 +335,7 @@ mod tests {
         for f in 0..he.face_alive.len() {
             if he.face_alive[f] {
                 let [a, b, c] = [0, 1, 2].map(|k| he.p(he.from[3 * f + k]));
-                assert!(
-                    (b - a).cross(c - a).length() > 1e-4,
-                    "face {f}: {a} {b} {c}"
-                );
+                assert!((b - a).cross(c - a).length() > 1e-4, "face {f}: {a} {b} {c}");
             }
         }
     }

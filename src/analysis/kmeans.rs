@@ -1,0 +1,614 @@
+//! k-means clustering: k-means++ seeding, then Lloyd's iterations.
+//!
+//! Used twice by the texton analysis (Tong et al. 2002, §4): on image appearance vectors to
+//! pick representative images, and on per-pixel filter responses to find the 3D textons
+//! (`k = 400` clusters of 4096 points × thousands of dimensions).
+//!
+//! Squared distances to all centres come from one matrix product per block of points,
+//! `‖x‖² − 2 x·c + ‖c‖²`; k-means++ keeps each point's distance to its nearest centre and
+//! updates it with one pass per added centre.
+//!
+//! # Determinism
+//!
+//! For a given seed the result is the same bit for bit whatever the number of rayon
+//! threads: work is split into blocks of fixed size, never by thread, every value is computed
+//! by one task in a fixed order, and sums across blocks or points are taken sequentially in
+//! index order.
+
+use crate::progress::Progress;
+use crate::{Error, Result};
+use ndarray::{Array2, ArrayView2, CowArray, Ix2};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// The seed used when none is given.
+pub const DEFAULT_SEED: u64 = 2002;
+
+/// Points per block of the distance matrix product: large enough for an efficient GEMM,
+/// small enough to spread 4096 points over several threads. Fixed, so that the results do
+/// not depend on the thread count.
+const ROW_BLOCK: usize = 256;
+
+/// k-means++ skips a point when the new seed is at least twice as far from the point's
+/// nearest seed as the point is (squared: 4×); the extra 0.1% covers rounding in the
+/// distances, so a skipped point is never one the new seed would have won.
+const PRUNE_MARGIN: f32 = 4.004;
+
+/// Parameters of [`kmeans`]; see each field for its default.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KMeansOptions {
+    /// Number of clusters. Default 400 (the paper's `n_t`). Must be ≥ 1; capped at the
+    /// number of distinct points, so the result may have fewer centres.
+    pub k: usize,
+    /// Most Lloyd iterations after seeding. Default 100; 0 returns the k-means++ seeds.
+    pub max_iterations: usize,
+    /// Convergence threshold: stop when the centres moved, in total squared distance, by at
+    /// most `tolerance` × the data's total variance (scikit-learn's rule). Default 1e-4;
+    /// 0 iterates until the centres stop moving or `max_iterations` is reached.
+    pub tolerance: f64,
+    /// Independent seedings, each followed by Lloyd's iterations; the run with the lowest
+    /// inertia is kept. Default 1: at `k = 400` the texton vocabulary gains little from
+    /// more, while each run costs as much again. linfa (and scikit-learn before 1.4) run 10,
+    /// which escapes poor local minima on small, tightly clustered problems. Must be ≥ 1.
+    pub runs: usize,
+    /// Seed of the ChaCha8 generator behind every random choice. Default [`DEFAULT_SEED`].
+    pub seed: u64,
+}
+
+impl Default for KMeansOptions {
+    fn default() -> Self {
+        KMeansOptions { k: 400, max_iterations: 100, tolerance: 1e-4, runs: 1, seed: DEFAULT_SEED }
+    }
+}
+
+impl KMeansOptions {
+    /// The defaults with `k` clusters.
+    pub fn with_k(k: usize) -> Self {
+        KMeansOptions { k, ..Self::default() }
+    }
+}
+
+/// The result of [`kmeans`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clustering {
+    /// One centre per row: `min(k, distinct points)` rows.
+    pub centres: Array2<f32>,
+    /// For each point, the row of its nearest centre (ties go to the lower row).
+    pub labels: Vec<usize>,
+    /// Sum over points of the squared distance to their centre.
+    pub inertia: f64,
+    /// Lloyd iterations run.
+    pub iterations: usize,
+    /// Whether the tolerance was met before `max_iterations`.
+    pub converged: bool,
+}
+
+/// Each point's nearest centre, as returned by [`assign`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Assignment {
+    /// For each point, the row of its nearest centre (ties go to the lower row).
+    pub labels: Vec<usize>,
+    /// For each point, the squared distance to that centre.
+    pub distances: Vec<f32>,
+}
+
+/// Clusters the rows of `data` (one point per row) into `options.k` clusters.
+///
+/// `progress` sees two stages per run: "k-means++" (one unit per centre) and "k-means" (one
+/// unit per iteration). Fails if `k` or `runs` is 0, `data` is empty, holds NaN or
+/// infinity, or the tolerance is negative.
+pub fn kmeans(
+    data: ArrayView2<'_, f32>,
+    options: &KMeansOptions,
+    progress: &dyn Progress,
+) -> Result<Clustering> {
+    if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+        return Err(Error::invalid(format!(
+            "k-means: tolerance must be a number ≥ 0, got {}",
+            options.tolerance
+        )));
+    }
+    if options.runs == 0 {
+        return Err(Error::invalid("k-means: runs must be at least 1"));
+    }
+    let data = standard(data);
+    let points = Points::new(&data)?;
+    check_k(options.k)?;
+    // One generator for all runs, drawn from in order, keeps the result a function of the seed.
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let mut best: Option<Clustering> = None;
+    for _ in 0..options.runs {
+        let seeds = plus_plus(&points, options.k, &mut rng, progress);
+        let run = lloyd(&points, seeds, options, progress);
+        if best.as_ref().is_none_or(|b| run.inertia < b.inertia) {
+            best = Some(run);
+        }
+    }
+    best.ok_or_else(|| Error::invalid("k-means: runs must be at least 1"))
+}
+
+/// The k-means++ seeds alone: up to `k` rows of `data`, the first drawn uniformly and each
+/// next with probability proportional to its squared distance from the nearest seed so far.
+/// Stops early when every point coincides with a seed (fewer than `k` distinct points).
+pub fn kmeans_plus_plus(data: ArrayView2<'_, f32>, k: usize, seed: u64) -> Result<Array2<f32>> {
+    let data = standard(data);
+    let points = Points::new(&data)?;
+    check_k(k)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Ok(plus_plus(&points, k, &mut rng, &crate::progress::Silent))
+}
+
+/// The nearest row of `centres` to each row of `data` (e.g. the texton label of each
+/// pixel). Fails if either is empty, their widths differ, or they hold NaN or infinity.
+pub fn assign(data: ArrayView2<'_, f32>, centres: ArrayView2<'_, f32>) -> Result<Assignment> {
+    let data = standard(data);
+    let centres = standard(centres);
+    let points = Points::new(&data)?;
+    let centre_points = Points::new(&centres).map_err(|e| Error::invalid(format!("centres: {e}")))?;
+    if centre_points.d != points.d {
+        return Err(Error::invalid(format!(
+            "k-means: centres have {} dimensions but the points have {}",
+            centre_points.d, points.d
+        )));
+    }
+    Ok(nearest(&points, &centre_points))
+}
+
+fn check_k(k: usize) -> Result<()> {
+    if k == 0 {
+        return Err(Error::invalid("k-means: k must be at least 1"));
+    }
+    Ok(())
+}
+
+/// Row-major contiguous data, copied only if the view is not already.
+fn standard(data: ArrayView2<'_, f32>) -> CowArray<'_, f32, Ix2> {
+    if data.is_standard_layout() {
+        CowArray::from(data)
+    } else {
+        CowArray::from(data.as_standard_layout().into_owned())
+    }
+}
+
+/// `n` points of `d` dimensions, row-major and contiguous.
+struct Points<'a> {
+    data: &'a [f32],
+    n: usize,
+    d: usize,
+}
+
+impl<'a> Points<'a> {
+    fn new(array: &'a CowArray<'_, f32, Ix2>) -> Result<Self> {
+        let (n, d) = array.dim();
+        if n == 0 || d == 0 {
+            return Err(Error::invalid(format!(
+                "k-means: {n} points of {d} dimensions is nothing to cluster"
+            )));
+        }
+        let data =
+            array.as_slice().ok_or_else(|| Error::invalid("k-means: internal error: data not contiguous"))?;
+        if let Some(i) = data.par_iter().position_first(|v| !v.is_finite()) {
+            return Err(Error::invalid(format!(
+                "k-means: point {} has {} in dimension {}; clustering needs finite values",
+                i / d,
+                data[i],
+                i % d
+            )));
+        }
+        Ok(Points { data, n, d })
+    }
+
+    fn row(&self, i: usize) -> &'a [f32] {
+        &self.data[i * self.d..(i + 1) * self.d]
+    }
+
+    /// Rows `start..start + len` as a matrix.
+    fn block(&self, start: usize, len: usize) -> ArrayView2<'a, f32> {
+        matrix(&self.data[start * self.d..(start + len) * self.d], len, self.d)
+    }
+
+    fn all(&self) -> ArrayView2<'a, f32> {
+        self.block(0, self.n)
+    }
+}
+
+/// A `rows × cols` view of a buffer this module sized itself.
+fn matrix(data: &[f32], rows: usize, cols: usize) -> ArrayView2<'_, f32> {
+    ArrayView2::from_shape((rows, cols), data).expect("buffer holds rows × cols values")
+}
+
+/// `‖a − b‖²` with eight independent partial sums, so the compiler can vectorise it without
+/// reordering floating-point additions (the order is fixed, hence reproducible).
+fn squared_distance(a: &[f32], b: &[f32]) -> f32 {
+    const LANES: usize = 8;
+    let mut acc = [0f32; LANES];
+    let (a_chunks, b_chunks) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let tail: f32 =
+        a_chunks.remainder().iter().zip(b_chunks.remainder()).map(|(x, y)| (x - y) * (x - y)).sum();
+    for (x, y) in a_chunks.zip(b_chunks) {
+        for l in 0..LANES {
+            let t = x[l] - y[l];
+            acc[l] += t * t;
+        }
+    }
+    acc.iter().sum::<f32>() + tail
+}
+
+/// The k-means++ seeds (see [`kmeans_plus_plus`]), one per row.
+fn plus_plus(points: &Points, k: usize, rng: &mut ChaCha8Rng, progress: &dyn Progress) -> Array2<f32> {
+    progress.start("k-means++", k as u64);
+    let first = rng.random_range(0..points.n);
+    let mut chosen = vec![first];
+    // Each point's squared distance to its nearest seed, and which seed that is.
+    let mut nearest_d: Vec<(f32, usize)> = (0..points.n)
+        .into_par_iter()
+        .map(|i| (squared_distance(points.row(i), points.row(first)), 0))
+        .collect();
+    progress.advance(1);
+    while chosen.len() < k {
+        let total: f64 = nearest_d.iter().map(|&(d, _)| d as f64).sum();
+        if total <= 0.0 {
+            break; // every point coincides with a seed: no more distinct points
+        }
+        let next = sample(&nearest_d, rng.random::<f64>() * total);
+        let centre = points.row(next);
+        let gaps: Vec<f32> = chosen.par_iter().map(|&c| squared_distance(points.row(c), centre)).collect();
+        let seed = chosen.len();
+        chosen.push(next);
+        nearest_d.par_iter_mut().enumerate().with_min_len(64).for_each(|(i, (d, s))| {
+            // Triangle inequality: a seed at least twice as far from x's nearest seed
+            // as x is cannot be nearer to x, so most rows need not be read at all once
+            // the clusters have seeds.
+            if gaps[*s] < PRUNE_MARGIN * *d {
+                let e = squared_distance(points.row(i), centre);
+                if e < *d {
+                    (*d, *s) = (e, seed);
+                }
+            }
+        });
+        progress.advance(1);
+    }
+    progress.finish();
+    let rows: Vec<f32> = chosen.iter().flat_map(|&i| points.row(i).iter().copied()).collect();
+    matrix(&rows, chosen.len(), points.d).to_owned()
+}
+
+/// The first index where the running sum of the weights (first members) exceeds `target`; rounding can leave
+/// `target` just past the total, hence the fallback to the last positive weight.
+fn sample(weights: &[(f32, usize)], target: f64) -> usize {
+    let (mut sum, mut last) = (0f64, 0);
+    for (i, &(w, _)) in weights.iter().enumerate().filter(|(_, &(w, _))| w > 0.0) {
+        sum += w as f64;
+        last = i;
+        if sum > target {
+            return i;
+        }
+    }
+    last
+}
+
+fn lloyd(
+    points: &Points,
+    seeds: Array2<f32>,
+    options: &KMeansOptions,
+    progress: &dyn Progress,
+) -> Clustering {
+    let threshold = options.tolerance * total_variance(points);
+    let mut centres = seeds;
+    let (mut iterations, mut converged) = (0, false);
+    progress.start("k-means", options.max_iterations as u64);
+    while iterations < options.max_iterations {
+        let mut assignment = nearest(points, &centre_view(&centres));
+        reseed_empty(&mut assignment, centres.nrows());
+        let moved = means(points, &assignment.labels, &centres);
+        let shift = squared_shift(&centres, &moved);
+        centres = moved;
+        iterations += 1;
+        progress.advance(1);
+        if shift <= threshold {
+            converged = true;
+            break;
+        }
+    }
+    progress.finish();
+    let assignment = nearest(points, &centre_view(&centres));
+    Clustering {
+        inertia: assignment.distances.iter().map(|&d| d as f64).sum(),
+        labels: assignment.labels,
+        centres,
+        iterations,
+        converged,
+    }
+}
+
+fn centre_view(centres: &Array2<f32>) -> Points<'_> {
+    Points {
+        data: centres.as_slice().expect("centres are built row-major"),
+        n: centres.nrows(),
+        d: centres.ncols(),
+    }
+}
+
+/// Nearest centre of every point: one `ROW_BLOCK × k` matrix product per block of points
+/// gives `x·c`; the winner's distance is then recomputed exactly, since
+/// `‖x‖² − 2x·c + ‖c‖²` loses precision to cancellation.
+fn nearest(points: &Points, centres: &Points) -> Assignment {
+    let origin = vec![0f32; centres.d];
+    let norms: Vec<f32> = (0..centres.n).map(|j| squared_distance(centres.row(j), &origin)).collect();
+    let transposed = centres.all().reversed_axes();
+    let mut labels = vec![0usize; points.n];
+    let mut distances = vec![0f32; points.n];
+    labels.par_chunks_mut(ROW_BLOCK).zip(distances.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(
+        |(b, (labels, distances))| {
+            let start = b * ROW_BLOCK;
+            let dots = points.block(start, labels.len()).dot(&transposed);
+            for (i, (label, distance)) in labels.iter_mut().zip(distances).enumerate() {
+                let row = dots.row(i);
+                let score = |j: usize| norms[j] - 2.0 * row[j];
+                let best = (1..centres.n).fold(0, |best, j| if score(j) < score(best) { j } else { best });
+                *label = best;
+                *distance = squared_distance(points.row(start + i), centres.row(best));
+            }
+        },
+    );
+    Assignment { labels, distances }
+}
+
+/// Gives each empty cluster the point farthest from its centre (ties: lowest index), so
+/// that no centre is wasted. Returns how many clusters were re-seeded.
+fn reseed_empty(assignment: &mut Assignment, k: usize) -> usize {
+    let mut counts = vec![0usize; k];
+    assignment.labels.iter().for_each(|&l| counts[l] += 1);
+    let empty: Vec<usize> = (0..k).filter(|&j| counts[j] == 0).collect();
+    if empty.is_empty() {
+        return 0;
+    }
+    let d = &assignment.distances;
+    let mut farthest: Vec<usize> = (0..d.len()).collect();
+    farthest.sort_by(|&a, &b| d[b].total_cmp(&d[a]).then(a.cmp(&b)));
+    let mut reseeded = 0;
+    for (&cluster, &point) in empty.iter().zip(&farthest) {
+        if assignment.distances[point] <= 0.0 {
+            break; // the remaining points all sit on a centre already
+        }
+        assignment.labels[point] = cluster;
+        assignment.distances[point] = 0.0;
+        reseeded += 1;
+    }
+    reseeded
+}
+
+/// The mean of each cluster's points (summed in f64, in point order); a cluster left
+/// without points keeps its previous centre.
+fn means(points: &Points, labels: &[usize], previous: &Array2<f32>) -> Array2<f32> {
+    let k = previous.nrows();
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); k];
+    labels.iter().enumerate().for_each(|(i, &l)| members[l].push(i));
+    let mut centres = previous.clone();
+    let slice = centres.as_slice_mut().expect("centres are built row-major");
+    slice.par_chunks_mut(points.d).zip(&members).for_each(|(centre, members)| {
+        if members.is_empty() {
+            return;
+        }
+        let mut sum = vec![0f64; points.d];
+        for &i in members {
+            sum.iter_mut().zip(points.row(i)).for_each(|(s, &x)| *s += x as f64);
+        }
+        let scale = 1.0 / members.len() as f64;
+        centre.iter_mut().zip(&sum).for_each(|(c, &s)| *c = (s * scale) as f32);
+    });
+    centres
+}
+
+/// Total squared distance the centres moved.
+fn squared_shift(before: &Array2<f32>, after: &Array2<f32>) -> f64 {
+    let (b, a) = (centre_view(before), centre_view(after));
+    (0..b.n).map(|j| squared_distance(b.row(j), a.row(j)) as f64).sum()
+}
+
+/// Sum over dimensions of the data's variance (mean squared distance to the mean point).
+fn total_variance(points: &Points) -> f64 {
+    let block_sums: Vec<Vec<f64>> = (0..points.n.div_ceil(ROW_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let mut sum = vec![0f64; points.d];
+            for i in b * ROW_BLOCK..((b + 1) * ROW_BLOCK).min(points.n) {
+                sum.iter_mut().zip(points.row(i)).for_each(|(s, &x)| *s += x as f64);
+            }
+            sum
+        })
+        .collect();
+    let mut mean = vec![0f64; points.d];
+    for sum in &block_sums {
+        mean.iter_mut().zip(sum).for_each(|(m, s)| *m += s);
+    }
+    mean.iter_mut().for_each(|m| *m /= points.n as f64);
+    let per_point: Vec<f64> = (0..points.n)
+        .into_par_iter()
+        .map(|i| points.row(i).iter().zip(&mean).map(|(&x, m)| (x as f64 - m).powi(2)).sum())
+        .collect();
+    per_point.iter().sum::<f64>() / points.n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::Silent;
+    use ndarray::Array2;
+
+    /// Gaussian blobs: `per` points around each centre, std `spread`, interleaved so no
+    /// cluster is a contiguous range. Returns the data and each point's blob.
+    fn blobs(centres: &Array2<f32>, per: usize, spread: f32, seed: u64) -> (Array2<f32>, Vec<usize>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (k, d) = centres.dim();
+        let mut normal = || {
+            // Box–Muller: rand 0.9 alone has no normal distribution.
+            let (u, v) = (1.0 - rng.random::<f32>(), rng.random::<f32>());
+            (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
+        };
+        let truth: Vec<usize> = (0..per * k).map(|i| i % k).collect();
+        let data = Array2::from_shape_fn((per * k, d), |(i, j)| centres[[truth[i], j]] + spread * normal());
+        (data, truth)
+    }
+
+    fn uniform(rows: usize, cols: usize, scale: f32, seed: u64) -> Array2<f32> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        Array2::from_shape_fn((rows, cols), |_| scale * rng.random::<f32>())
+    }
+
+    fn inertia_of(data: &Array2<f32>, centres: &Array2<f32>) -> f64 {
+        let a = assign(data.view(), centres.view()).unwrap();
+        a.distances.iter().map(|&d| d as f64).sum()
+    }
+
+    #[test]
+    fn inertia_is_within_2_percent_of_linfa() {
+        use linfa::traits::Fit;
+        // Overlapping blobs have several local minima; both sides keep the best of 10 runs.
+        let centres = uniform(8, 4, 6.0, 1);
+        let (data, _) = blobs(&centres, 75, 1.0, 2);
+        let options = KMeansOptions { runs: 10, ..KMeansOptions::with_k(8) };
+        let ours = kmeans(data.view(), &options, &Silent).unwrap();
+        let dataset = linfa::DatasetBase::from(data.mapv(f64::from));
+        let theirs = linfa_clustering::KMeans::params(8).fit(&dataset).unwrap();
+        let linfa_inertia = inertia_of(&data, &theirs.centroids().mapv(|v| v as f32));
+        assert!((ours.inertia - inertia_of(&data, &ours.centres)).abs() < 1e-6 * ours.inertia);
+        let ratio = ours.inertia / linfa_inertia;
+        assert!((ratio - 1.0).abs() < 0.02, "ours {} linfa {linfa_inertia}", ours.inertia);
+    }
+
+    #[test]
+    fn same_bits_whatever_the_thread_count() {
+        let centres = uniform(30, 40, 3.0, 3);
+        let (data, _) = blobs(&centres, 40, 1.0, 4);
+        let options = KMeansOptions { k: 25, max_iterations: 20, runs: 2, ..KMeansOptions::default() };
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| kmeans(data.view(), &options, &Silent).unwrap())
+        };
+        let bits = |c: &Clustering| c.centres.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let one = run(1);
+        for threads in [2, 3] {
+            let other = run(threads);
+            assert_eq!(bits(&one), bits(&other), "{threads} threads");
+            assert_eq!(one.labels, other.labels);
+            assert_eq!(one.inertia.to_bits(), other.inertia.to_bits());
+        }
+    }
+
+    #[test]
+    fn recovers_planted_well_separated_clusters() {
+        let planted = uniform(6, 10, 100.0, 5);
+        let (data, truth) = blobs(&planted, 50, 0.5, 6);
+        let found = kmeans(data.view(), &KMeansOptions::with_k(6), &Silent).unwrap();
+        assert!(found.converged);
+        // Same partition up to renaming: each found cluster maps to exactly one planted one.
+        let mut map = [None; 6];
+        for (&f, &t) in found.labels.iter().zip(&truth) {
+            assert_eq!(*map[f].get_or_insert(t), t, "cluster {f} mixes planted clusters");
+        }
+        for (f, t) in map.iter().enumerate() {
+            let t = t.expect("every cluster has points");
+            let error = squared_distance(&found.centres.row(f).to_vec(), &planted.row(t).to_vec());
+            assert!(error < 0.5, "centre {f} is {error} from planted {t}");
+        }
+    }
+
+    #[test]
+    fn k_is_capped_at_the_number_of_distinct_points() {
+        let distinct = uniform(4, 3, 1.0, 7);
+        let data = Array2::from_shape_fn((10, 3), |(i, j)| distinct[[i % 4, j]]);
+        let found = kmeans(data.view(), &KMeansOptions::with_k(10), &Silent).unwrap();
+        assert_eq!(found.centres.nrows(), 4);
+        assert_eq!(found.inertia, 0.0);
+        let one = Array2::from_elem((5, 2), 1.5f32);
+        let found = kmeans(one.view(), &KMeansOptions::with_k(3), &Silent).unwrap();
+        assert_eq!(found.centres, Array2::from_elem((1, 2), 1.5f32));
+        assert_eq!(found.labels, vec![0; 5]);
+    }
+
+    #[test]
+    fn empty_clusters_take_the_farthest_point() {
+        let mut a = Assignment { labels: vec![0, 0, 0, 2, 0], distances: vec![1.0, 5.0, 3.0, 0.5, 5.0] };
+        assert_eq!(reseed_empty(&mut a, 4), 2);
+        assert_eq!(a.labels, [0, 1, 0, 2, 3]);
+        // A centre far from all points gets none; Lloyd's iterations give it the outlier.
+        let data = ndarray::array![[0.0f32, 0.0], [0.1, 0.0], [0.0, 0.1], [5.0, 5.0]];
+        let seeds = ndarray::array![[0.0f32, 0.0], [100.0, 100.0]];
+        let points_owned = standard(data.view());
+        let points = Points::new(&points_owned).unwrap();
+        let found = lloyd(&points, seeds, &KMeansOptions::with_k(2), &Silent);
+        assert_eq!(found.labels, [0, 0, 0, 1]);
+        assert_eq!(found.centres.row(1).to_vec(), [5.0, 5.0]);
+    }
+
+    #[test]
+    fn any_memory_layout_gives_the_same_result() {
+        let data = uniform(300, 7, 1.0, 8);
+        let transposed = data.t().to_owned();
+        let options = KMeansOptions::with_k(5);
+        let a = kmeans(data.view(), &options, &Silent).unwrap();
+        let b = kmeans(transposed.t(), &options, &Silent).unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bad_inputs_are_rejected() {
+        let data = uniform(10, 3, 1.0, 9);
+        let err = |d: ArrayView2<f32>, o: KMeansOptions| kmeans(d, &o, &Silent).unwrap_err().to_string();
+        assert!(err(data.view(), KMeansOptions::with_k(0)).contains("k must be at least 1"));
+        assert!(err(Array2::zeros((0, 3)).view(), KMeansOptions::with_k(2)).contains("nothing to cluster"));
+        let mut bad = data.clone();
+        bad[[4, 2]] = f32::INFINITY;
+        assert!(err(bad.view(), KMeansOptions::with_k(2)).contains("point 4 has inf in dimension 2"));
+        let negative = KMeansOptions { tolerance: -1.0, ..KMeansOptions::with_k(2) };
+        assert!(err(data.view(), negative).contains("tolerance"));
+        let no_runs = KMeansOptions { runs: 0, ..KMeansOptions::with_k(2) };
+        assert!(err(data.view(), no_runs).contains("runs must be at least 1"));
+        let e = assign(data.view(), Array2::zeros((2, 4)).view()).unwrap_err();
+        assert!(e.to_string().contains("centres have 4 dimensions but the points have 3"));
+    }
+
+    /// Textbook k-means++ drawing the same random numbers, without the pruning.
+    fn unpruned_plus_plus(data: &Array2<f32>, k: usize, seed: u64) -> Array2<f32> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let row = |i: usize| data.row(i).to_vec();
+        let mut chosen = vec![rng.random_range(0..data.nrows())];
+        let mut nearest: Vec<f32> =
+            (0..data.nrows()).map(|i| squared_distance(&row(i), &row(chosen[0]))).collect();
+        while chosen.len() < k {
+            let total: f64 = nearest.iter().map(|&d| d as f64).sum();
+            let weights: Vec<(f32, usize)> = nearest.iter().map(|&d| (d, 0)).collect();
+            let next = sample(&weights, rng.random::<f64>() * total);
+            chosen.push(next);
+            for (i, d) in nearest.iter_mut().enumerate() {
+                *d = d.min(squared_distance(&row(i), &row(next)));
+            }
+        }
+        data.select(ndarray::Axis(0), &chosen)
+    }
+
+    #[test]
+    fn pruning_leaves_the_seeds_unchanged() {
+        // Tight clusters are where the triangle-inequality test skips most points.
+        let centres = uniform(20, 16, 10.0, 11);
+        let (data, _) = blobs(&centres, 30, 0.2, 12);
+        for seed in 0..5 {
+            let seeds = kmeans_plus_plus(data.view(), 40, seed).unwrap();
+            assert_eq!(seeds, unpruned_plus_plus(&data, 40, seed), "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn seeds_are_distinct_rows_of_the_data() {
+        let data = uniform(200, 5, 1.0, 10);
+        let seeds = kmeans_plus_plus(data.view(), 20, 1).unwrap();
+        assert_eq!(seeds.nrows(), 20);
+        for seed in seeds.rows() {
+            assert_eq!(data.rows().into_iter().filter(|r| *r == seed).count(), 1);
+        }
+        assert_eq!(seeds, kmeans_plus_plus(data.view(), 20, 1).unwrap());
+        assert_ne!(seeds, kmeans_plus_plus(data.view(), 20, 2).unwrap());
+    }
+}

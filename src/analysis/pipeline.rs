@@ -1,0 +1,228 @@
+//! `analyze`: a BTF stack in, the texton pyramid with its kNN lists out.
+
+use super::convolve::{BankConvolver, Padding};
+use super::filters::FilterBank;
+use super::gamma::distance_table;
+use super::knn::{single_level_lists, two_level_lists, KnnParams, Level};
+use super::pyramid::{downsample, level_sizes};
+use super::select::representatives;
+use super::textons::{level_textons, LevelTextons, TextonOptions};
+use crate::btf::Btf;
+use crate::progress::Progress;
+use crate::{Error, Result};
+use ndarray::Array2;
+use std::time::{Duration, Instant};
+
+/// Parameters of an analysis; defaults follow Tong et al. 2002.
+#[derive(Clone, Debug)]
+pub struct AnalysisParams {
+    /// Textons at the finest level (default 400, the paper's n_t; capped by the pixel count).
+    /// Each coarser level gets a quarter as many.
+    pub textons: usize,
+    /// Representative images (default 400, the paper's n_s; capped by the image count).
+    pub selected: usize,
+    /// Pyramid levels (default 3).
+    pub levels: usize,
+    /// Length of every kNN list, the pixel itself included (default 11; 1 = Ashikhmin).
+    pub k: usize,
+    /// Side of the square neighbourhood of the kNN search, odd (default 5).
+    pub neighborhood: usize,
+    /// Whether the sample wraps around: filters and neighbourhoods wrap (default false).
+    pub tileable: bool,
+    /// Most principal images filtered per level (default 32; see `analysis::basis`).
+    pub basis_rank: usize,
+    /// Seed of every random choice (default 0).
+    pub seed: u64,
+    /// The filter bank (default Leung–Malik 48, `filters/lm48.toml`).
+    pub filters: FilterBank,
+}
+
+impl Default for AnalysisParams {
+    fn default() -> Self {
+        AnalysisParams {
+            textons: 400,
+            selected: 400,
+            levels: 3,
+            k: 11,
+            neighborhood: 5,
+            tileable: false,
+            basis_rank: 32,
+            seed: 0,
+            filters: FilterBank::lm48(),
+        }
+    }
+}
+
+/// One analysed pyramid level.
+#[derive(Clone, Debug)]
+pub struct AnalysisLevel {
+    pub textons: LevelTextons,
+    /// `[pixels][k]` single-level kNN lists, the pixel itself first.
+    pub knn: Vec<u32>,
+    /// `[pixels][k]` lists by two-level neighbourhoods (this level + the next coarser one);
+    /// absent on the coarsest level.
+    pub knn_two_level: Option<Vec<u32>>,
+}
+
+/// Wall time per stage, summed over levels.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Timings {
+    pub selection: Duration,
+    pub filtering: Duration,
+    pub kmeans: Duration,
+    pub gamma: Duration,
+    pub knn: Duration,
+    pub total: Duration,
+}
+
+/// The result of [`analyze`].
+#[derive(Clone, Debug)]
+pub struct Analysis {
+    pub params: AnalysisParams,
+    /// Indices of the representative images, increasing.
+    pub selected: Vec<usize>,
+    /// Finest level first.
+    pub levels: Vec<AnalysisLevel>,
+    pub timings: Timings,
+}
+
+impl AnalysisParams {
+    /// Checks every parameter against the sample size; messages name the flag.
+    pub fn validate(&self, width: usize, height: usize) -> Result<()> {
+        let positive = [
+            ("--textons", self.textons),
+            ("--selected", self.selected),
+            ("--levels", self.levels),
+            ("--k", self.k),
+            ("--basis", self.basis_rank),
+        ];
+        for (flag, value) in positive {
+            if value == 0 {
+                return Err(Error::invalid(format!("{flag} must be at least 1")));
+            }
+        }
+        if self.neighborhood < 3 || self.neighborhood % 2 == 0 {
+            return Err(Error::invalid(format!(
+                "--neighborhood {} must be odd and at least 3",
+                self.neighborhood
+            )));
+        }
+        let need = self.neighborhood + 4;
+        let sizes = level_sizes(width, height, self.levels);
+        let (w, h) = sizes[sizes.len() - 1];
+        if w.min(h) < need {
+            let fit = (1..=self.levels)
+                .take_while(|&l| {
+                    let (w, h) = level_sizes(width, height, l)[l - 1];
+                    w.min(h) >= need
+                })
+                .count();
+            return Err(Error::invalid(format!(
+                "--levels {}: the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; use --levels {fit} or fewer",
+                self.levels,
+                n = self.neighborhood
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Analyses `btf`: representative images, then per level textons, Γ, embedding and kNN lists.
+pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> Result<Analysis> {
+    let (width, height) = (btf.width(), btf.height());
+    params.validate(width, height)?;
+    let started = Instant::now();
+    let mut timings = Timings::default();
+    let convolver = BankConvolver::new(params.filters.clone());
+    let padding = Padding::from_tileable(params.tileable);
+
+    let all = stack_rows(btf, &(0..btf.len()).collect::<Vec<_>>());
+    let selected = representatives(
+        all.view(),
+        (width, height),
+        params.selected,
+        &convolver,
+        padding,
+        params.seed,
+        progress,
+    )?;
+    drop(all);
+    timings.selection = started.elapsed();
+
+    let mut images = stack_rows(btf, &selected);
+    let mut levels = Vec::with_capacity(params.levels);
+    let sizes = level_sizes(width, height, params.levels);
+    for (l, &(w, h)) in sizes.iter().enumerate() {
+        if l > 0 {
+            images = downsample_rows(&images, sizes[l - 1], params.tileable);
+        }
+        let options = TextonOptions {
+            textons: (params.textons >> (2 * l)).max(1),
+            basis_rank: params.basis_rank,
+            padding,
+            seed: params.seed + l as u64,
+        };
+        let textons = level_textons(images.view(), (w, h), &convolver, &options, progress)?;
+        timings.filtering += textons.timings.filtering;
+        timings.kmeans += textons.timings.kmeans;
+        timings.gamma += textons.timings.gamma;
+        levels.push(textons);
+    }
+
+    let knn_started = Instant::now();
+    let analysed = knn_lists(levels, params, progress);
+    timings.knn = knn_started.elapsed();
+    timings.total = started.elapsed();
+    Ok(Analysis { params: params.clone(), selected, levels: analysed, timings })
+}
+
+/// The chosen images as rows of interleaved linear RGB.
+fn stack_rows(btf: &Btf, indices: &[usize]) -> Array2<f32> {
+    let per_image = btf.width() * btf.height() * 3;
+    let mut rows = Array2::zeros((indices.len(), per_image));
+    for (row, &i) in indices.iter().enumerate() {
+        for (dst, src) in rows.row_mut(row).iter_mut().zip(btf.image(i)) {
+            *dst = src.to_f32();
+        }
+    }
+    rows
+}
+
+fn downsample_rows(images: &Array2<f32>, (width, height): (usize, usize), tileable: bool) -> Array2<f32> {
+    let rows: Vec<Vec<f32>> = images
+        .rows()
+        .into_iter()
+        .map(|row| downsample(row.as_slice().unwrap_or(&row.to_vec()), width, height, 3, tileable).0)
+        .collect();
+    let cols = rows.first().map_or(0, Vec::len);
+    Array2::from_shape_vec((rows.len(), cols), rows.concat()).unwrap_or_else(|_| Array2::zeros((0, 0)))
+}
+
+fn knn_lists(
+    levels: Vec<LevelTextons>,
+    params: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Vec<AnalysisLevel> {
+    let tables: Vec<Vec<f32>> = levels.iter().map(|l| distance_table(&l.gamma)).collect();
+    let pyramid: Vec<Level> = levels
+        .iter()
+        .zip(&tables)
+        .map(|(l, t)| Level { map: &l.map, distances: t, textons: l.textons + 1 })
+        .collect();
+    let knn = KnnParams { k: params.k, neighborhood: params.neighborhood, tileable: params.tileable };
+    progress.start("kNN lists", levels.len() as u64);
+    let lists: Vec<(Vec<u32>, Option<Vec<u32>>)> = (0..levels.len())
+        .map(|l| {
+            let single = single_level_lists(&pyramid, l, &knn);
+            let two = (l + 1 < levels.len()).then(|| two_level_lists(&pyramid, l, &knn));
+            progress.advance(1);
+            (single, two)
+        })
+        .collect();
+    progress.finish();
+    levels
+        .into_iter()
+        .zip(lists)
+        .map(|(textons, (knn, knn_two_level))| AnalysisLevel { textons, knn, knn_two_level })
+        .collect()
+}

@@ -1,0 +1,294 @@
+//! The analysis directory: `analysis.json`, `.npy` arrays and PNG previews, written
+//! atomically. Everything later stages need is here, sample images included.
+//!
+//! | file | dtype | shape |
+//! |---|---|---|
+//! | `images.npy` | f16 | [n, h, w, 3] linear RGB of every image |
+//! | `directions.npy` | f32 | [n, 4]: θ_light, φ_light, θ_view, φ_view in degrees |
+//! | `level{L}_textons.npy` | u16 | [h_L, w_L] texton map |
+//! | `level{L}_gamma.npy` | f32 | [t+1, t+1] Γ, default texton last |
+//! | `level{L}_embedding.npy` | f32 | [t+1, d] spectral embedding |
+//! | `level{L}_knn.npy` | u32 | [h_L, w_L, k] kNN lists (pixel index y·w+x, itself first) |
+//! | `level{L}_knn2.npy` | u32 | [h_L, w_L, k] two-level-neighbourhood lists (not on the coarsest level) |
+
+use super::npy;
+use super::pipeline::Analysis;
+use crate::btf::image_io::linear_to_srgb8;
+use crate::btf::Btf;
+use crate::fsutil::{write_file_atomic, StagedDir};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The manifest file of an analysis directory.
+pub const MANIFEST: &str = "analysis.json";
+
+/// `analysis.json`: what was analysed, how, and what came out.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always "btfsynth-analysis".
+    pub format: String,
+    pub version: u32,
+    pub source: Source,
+    pub params: Params,
+    /// The filter bank: name and one entry per filter.
+    pub filters: serde_json::Value,
+    /// Indices of the representative images.
+    pub selected: Vec<usize>,
+    pub images: usize,
+    pub width: usize,
+    pub height: usize,
+    pub k: usize,
+    pub levels: Vec<LevelInfo>,
+    /// Seconds per stage: selection, filtering, kmeans, gamma, knn, total.
+    pub timings_s: serde_json::Value,
+    /// Peak resident memory of the process, if the platform reports it.
+    pub peak_memory_bytes: Option<u64>,
+}
+
+/// Where the stack came from.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Source {
+    pub path: String,
+    /// FNV-1a 64 of the pixels (f16 bits) and directions: detects a changed stack.
+    pub fingerprint: String,
+    pub crop: Option<[u32; 4]>,
+}
+
+/// The parameters as run.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Params {
+    pub textons: usize,
+    pub selected: usize,
+    pub levels: usize,
+    pub k: usize,
+    pub neighborhood: usize,
+    pub tileable: bool,
+    pub basis_rank: usize,
+    pub seed: u64,
+}
+
+/// One level's sizes and files.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LevelInfo {
+    pub width: usize,
+    pub height: usize,
+    /// Textons, not counting the default texton (which is index `textons`).
+    pub textons: usize,
+    pub embedding_dims: usize,
+    pub basis_rank: usize,
+    pub basis_energy: f64,
+    pub kmeans_iterations: usize,
+    pub files: LevelFiles,
+}
+
+/// File names of one level's arrays, relative to the analysis directory.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LevelFiles {
+    pub textons: String,
+    pub gamma: String,
+    pub embedding: String,
+    pub knn: String,
+    pub knn_two_level: Option<String>,
+}
+
+/// Writes `analysis` of `btf` (read from `source_path` with `crop`) into `dir`.
+pub fn write(
+    analysis: &Analysis,
+    btf: &Btf,
+    source_path: &Path,
+    crop: Option<[u32; 4]>,
+    dir: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
+    let staged = StagedDir::new(dir, overwrite)?;
+    let out = staged.path();
+    let (w, h) = (btf.width(), btf.height());
+    npy::write(&out.join("images.npy"), &[btf.len(), h, w, 3], btf.pixels())?;
+    let directions: Vec<f32> =
+        btf.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
+    npy::write(&out.join("directions.npy"), &[btf.len(), 4], &directions)?;
+    let mut levels = Vec::new();
+    for (l, level) in analysis.levels.iter().enumerate() {
+        levels.push(write_level(out, l, level)?);
+    }
+    write_previews(out, analysis)?;
+    let manifest = manifest(analysis, btf, source_path, crop, levels);
+    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    write_file_atomic(&out.join(MANIFEST), json.as_bytes())?;
+    staged.commit()
+}
+
+fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> Result<LevelInfo> {
+    let t = &level.textons;
+    let (w, h) = (t.map.width, t.map.height);
+    let files = LevelFiles {
+        textons: format!("level{l}_textons.npy"),
+        gamma: format!("level{l}_gamma.npy"),
+        embedding: format!("level{l}_embedding.npy"),
+        knn: format!("level{l}_knn.npy"),
+        knn_two_level: level.knn_two_level.as_ref().map(|_| format!("level{l}_knn2.npy")),
+    };
+    let k = level.knn.len() / (w * h).max(1);
+    npy::write(&out.join(&files.textons), &[h, w], &t.map.labels)?;
+    npy::write(
+        &out.join(&files.gamma),
+        &[t.gamma.nrows(), t.gamma.ncols()],
+        &t.gamma.iter().copied().collect::<Vec<_>>(),
+    )?;
+    npy::write(
+        &out.join(&files.embedding),
+        &[t.embedding.nrows(), t.embedding.ncols()],
+        &t.embedding.iter().copied().collect::<Vec<_>>(),
+    )?;
+    npy::write(&out.join(&files.knn), &[h, w, k], &level.knn)?;
+    if let (Some(name), Some(lists)) = (&files.knn_two_level, &level.knn_two_level) {
+        npy::write(&out.join(name), &[h, w, k], lists)?;
+    }
+    Ok(LevelInfo {
+        width: w,
+        height: h,
+        textons: t.textons,
+        embedding_dims: t.embedding.ncols(),
+        basis_rank: t.basis_rank,
+        basis_energy: t.basis_energy,
+        kmeans_iterations: t.kmeans_iterations,
+        files,
+    })
+}
+
+fn manifest(
+    analysis: &Analysis,
+    btf: &Btf,
+    source_path: &Path,
+    crop: Option<[u32; 4]>,
+    levels: Vec<LevelInfo>,
+) -> Manifest {
+    let p = &analysis.params;
+    let t = &analysis.timings;
+    let filters: Vec<serde_json::Value> = p
+        .filters
+        .filters()
+        .iter()
+        .map(|f| {
+            let s = f.spec();
+            serde_json::json!({"kind": s.kind.name(), "sigma": s.sigma, "elongation": s.elongation, "orientation": s.orientation_deg, "support": s.support})
+        })
+        .collect();
+    Manifest {
+        format: "btfsynth-analysis".into(),
+        version: 1,
+        source: Source { path: source_path.display().to_string(), fingerprint: fingerprint(btf), crop },
+        params: Params {
+            textons: p.textons,
+            selected: p.selected,
+            levels: p.levels,
+            k: p.k,
+            neighborhood: p.neighborhood,
+            tileable: p.tileable,
+            basis_rank: p.basis_rank,
+            seed: p.seed,
+        },
+        filters: serde_json::json!({"name": p.filters.name(), "filters": filters}),
+        selected: analysis.selected.clone(),
+        images: btf.len(),
+        width: btf.width(),
+        height: btf.height(),
+        k: p.k,
+        levels,
+        timings_s: serde_json::json!({
+            "selection": t.selection.as_secs_f64(), "filtering": t.filtering.as_secs_f64(),
+            "kmeans": t.kmeans.as_secs_f64(), "gamma": t.gamma.as_secs_f64(),
+            "knn": t.knn.as_secs_f64(), "total": t.total.as_secs_f64(),
+        }),
+        peak_memory_bytes: peak_memory_bytes(),
+    }
+}
+
+/// Reads `analysis.json` of an analysis directory.
+pub fn read_manifest(dir: &Path) -> Result<Manifest> {
+    let path = dir.join(MANIFEST);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let manifest: Manifest = serde_json::from_str(&text)
+        .map_err(|e| Error::format(&path, format!("invalid analysis manifest: {e}")))?;
+    if manifest.format != "btfsynth-analysis" {
+        return Err(Error::format(
+            &path,
+            format!("format is '{}', not 'btfsynth-analysis'", manifest.format),
+        ));
+    }
+    Ok(manifest)
+}
+
+/// FNV-1a 64 over the directions and the pixels' f16 bits.
+pub fn fingerprint(btf: &Btf) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(&(btf.width() as u64).to_le_bytes());
+    eat(&(btf.height() as u64).to_le_bytes());
+    for p in btf.pairs() {
+        for a in [p.light.theta, p.light.phi, p.view.theta, p.view.phi] {
+            eat(&a.to_le_bytes());
+        }
+    }
+    for v in btf.pixels() {
+        eat(&v.to_bits().to_le_bytes());
+    }
+    format!("fnv1a64:{h:016x}")
+}
+
+/// Peak resident set size from /proc (Linux); None elsewhere.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// `level0_textons.png` (false colour: the embedding's first three components as RGB, so
+/// similar textons get similar colours) and `filters.png` (the bank as a contact sheet).
+fn write_previews(out: &Path, analysis: &Analysis) -> Result<()> {
+    if let Some(level) = analysis.levels.first() {
+        let t = &level.textons;
+        let colours = false_colours(&t.embedding);
+        let pixels: Vec<u8> = t.map.labels.iter().flat_map(|&l| colours[l as usize]).collect();
+        save_png(&out.join("level0_textons.png"), t.map.width, t.map.height, &pixels)?;
+    }
+    let sheet = analysis.params.filters.contact_sheet();
+    save_png(&out.join("filters.png"), sheet.width, sheet.height, &sheet.pixels)
+}
+
+fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
+    let dims = embedding.ncols().min(3);
+    let range: Vec<(f32, f32)> = (0..dims)
+        .map(|c| embedding.column(c).iter().fold((f32::MAX, f32::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v))))
+        .collect();
+    embedding
+        .rows()
+        .into_iter()
+        .map(|row| {
+            let mut rgb = [128u8; 3];
+            for (c, &(lo, hi)) in range.iter().enumerate() {
+                let t = if hi > lo { (row[c] - lo) / (hi - lo) } else { 0.5 };
+                rgb[c] = linear_to_srgb8(0.05 + 0.9 * t);
+            }
+            rgb
+        })
+        .collect()
+}
+
+fn save_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+    image::save_buffer_with_format(
+        path,
+        rgb,
+        width as u32,
+        height as u32,
+        image::ExtendedColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+}

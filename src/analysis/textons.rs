@@ -1,0 +1,98 @@
+//! One level of the texton pyramid (Tong §4): 3D textons by k-means of the per-pixel
+//! responses of the representative images, the 2D texton map, Γ and its embedding.
+
+use super::basis::{principal_images, BasisOptions};
+use super::convolve::{BankConvolver, Padding};
+use super::features::texton_features;
+use super::gamma::{gamma_with_default, spectral_embedding, DEFAULT_ENERGY};
+use super::kmeans::{kmeans, KMeansOptions};
+use super::knn::TextonMap;
+use crate::progress::Progress;
+use crate::{Error, Result};
+use ndarray::{Array2, ArrayView2};
+use std::time::{Duration, Instant};
+
+/// The textons of one pyramid level. Texton `textons` (the last row of Γ) is the default
+/// texton: the mean of all appearance vectors.
+#[derive(Clone, Debug)]
+pub struct LevelTextons {
+    pub map: TextonMap,
+    /// (textons + 1)², dot products of the appearance vectors.
+    pub gamma: Array2<f32>,
+    /// (textons + 1) × d: rows whose distances are the texton distances.
+    pub embedding: Array2<f32>,
+    /// Number of textons, not counting the default texton.
+    pub textons: usize,
+    /// Principal images the responses were computed from, and the variance they hold.
+    pub basis_rank: usize,
+    pub basis_energy: f64,
+    /// Lloyd iterations the clustering ran.
+    pub kmeans_iterations: usize,
+    /// Time spent filtering, clustering and forming Γ.
+    pub timings: StageTimes,
+}
+
+/// Wall time per stage.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StageTimes {
+    pub filtering: Duration,
+    pub kmeans: Duration,
+    pub gamma: Duration,
+}
+
+/// How one level's textons are made.
+#[derive(Clone, Copy, Debug)]
+pub struct TextonOptions {
+    /// Textons wanted (capped by the pixel count).
+    pub textons: usize,
+    /// Most principal images filtered (see [`super::basis`]).
+    pub basis_rank: usize,
+    pub padding: Padding,
+    pub seed: u64,
+}
+
+/// Textons of `images` (one interleaved RGB image per row, `width × height`).
+pub fn level_textons(
+    images: ArrayView2<f32>,
+    (width, height): (usize, usize),
+    convolver: &BankConvolver,
+    options: &TextonOptions,
+    progress: &dyn Progress,
+) -> Result<LevelTextons> {
+    let mut timings = StageTimes::default();
+    let started = Instant::now();
+    let basis_options =
+        BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() };
+    let basis = principal_images(images, &basis_options)?;
+    let features = texton_features(&basis, width, height, convolver, options.padding)?;
+    timings.filtering = started.elapsed();
+
+    let started = Instant::now();
+    let k = options.textons.min(width * height);
+    let clustering = kmeans(
+        features.view(),
+        &KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() },
+        progress,
+    )?;
+    timings.kmeans = started.elapsed();
+    let textons = clustering.centres.nrows();
+    if textons >= u16::MAX as usize {
+        return Err(Error::invalid(format!("{textons} textons do not fit the u16 texton map")));
+    }
+    let labels = clustering.labels.iter().map(|&l| l as u16).collect();
+
+    let started = Instant::now();
+    let gamma = gamma_with_default(&clustering.centres);
+    let embedding = spectral_embedding(&gamma, DEFAULT_ENERGY)?;
+    timings.gamma = started.elapsed();
+    Ok(LevelTextons {
+        map: TextonMap { width, height, labels },
+        gamma,
+        embedding,
+        textons,
+        basis_rank: basis.components.nrows(),
+        basis_energy: basis.energy,
+        kmeans_iterations: clustering.iterations,
+        timings,
+    })
+}

@@ -1,0 +1,107 @@
+//! `btfsynth analyze`: texton analysis of a stack.
+
+use super::progress::Bars;
+use crate::analysis::filters::FilterBank;
+use crate::analysis::pipeline::{analyze, AnalysisParams};
+use crate::analysis::store;
+use crate::btf::{load, Crop, LoadOptions};
+use crate::fsutil::check_target;
+use anyhow::Result;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+#[command(after_help = "Example: btfsynth analyze pebbles/ -o pebbles.analysis/")]
+pub struct AnalyzeArgs {
+    /// The BTF stack: a directory (btf.json or Bonn/UTIA-named images), a btf.json, or one image.
+    stack: PathBuf,
+    /// Output directory: analysis.json, .npy arrays and PNG previews.
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Textons at the finest level (capped by the pixel count); each coarser level gets a quarter.
+    #[arg(long, default_value_t = 400)]
+    textons: usize,
+    /// Representative images clustered into textons (capped by the image count).
+    #[arg(long, default_value_t = 400)]
+    selected: usize,
+    /// Pyramid levels.
+    #[arg(long, default_value_t = 3)]
+    levels: usize,
+    /// Length of each kNN list, the pixel itself included (1 = Ashikhmin's coherence search).
+    #[arg(long, default_value_t = 11)]
+    k: usize,
+    /// Side of the square neighbourhood used by the kNN search (odd).
+    #[arg(long, default_value_t = 5)]
+    neighborhood: usize,
+    /// The sample tiles: filters and neighbourhoods wrap around instead of mirroring.
+    #[arg(long)]
+    tileable: bool,
+    /// Most principal images filtered per level (more = closer to filtering every image).
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    basis: usize,
+    /// A filter bank TOML file (default: the built-in Leung–Malik 48, filters/lm48.toml).
+    #[arg(long, value_name = "FILE")]
+    filters: Option<PathBuf>,
+    /// Analyse only this rectangle of the sample: x,y,w,h in pixels.
+    #[arg(long, value_name = "X,Y,W,H")]
+    crop: Option<Crop>,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Replace the output directory if it exists.
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
+    check_target(&args.output, args.force)?;
+    let filters = match &args.filters {
+        Some(path) => FilterBank::from_file(path)?,
+        None => FilterBank::lm48(),
+    };
+    let params = AnalysisParams {
+        textons: args.textons,
+        selected: args.selected,
+        levels: args.levels,
+        k: args.k,
+        neighborhood: args.neighborhood,
+        tileable: args.tileable,
+        basis_rank: args.basis,
+        seed: args.seed,
+        filters,
+    };
+    let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
+    let analysis = analyze(&stack, &params, bars)?;
+    let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
+    let written = store::write(&analysis, &stack, &args.stack, crop, &args.output, args.force)?;
+    let t = &analysis.timings;
+    let sizes: Vec<String> = analysis
+        .levels
+        .iter()
+        .map(|l| {
+            format!(
+                "{}x{}: {} textons, d={}",
+                l.textons.map.width,
+                l.textons.map.height,
+                l.textons.textons,
+                l.textons.embedding.ncols()
+            )
+        })
+        .collect();
+    eprintln!(
+        "analysed {} images ({} selected) into {}",
+        stack.len(),
+        analysis.selected.len(),
+        written.display()
+    );
+    eprintln!("  levels    {}", sizes.join("; "));
+    eprintln!(
+        "  time      {:.1} s (selection {:.1}, filtering {:.1}, k-means {:.1}, Γ {:.1}, kNN {:.1})",
+        t.total.as_secs_f64(),
+        t.selection.as_secs_f64(),
+        t.filtering.as_secs_f64(),
+        t.kmeans.as_secs_f64(),
+        t.gamma.as_secs_f64(),
+        t.knn.as_secs_f64()
+    );
+    Ok(())
+}

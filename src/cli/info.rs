@@ -1,0 +1,140 @@
+//! `btfsynth info`: say what a path is.
+
+use super::progress::Bars;
+use crate::analysis::store::{self, Manifest};
+use crate::btf::{load, Btf, Crop, Direction, LoadOptions};
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, or one
+    /// image) or an analysis directory.
+    path: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+    /// Describe only this rectangle of the sample: x,y,w,h in pixels.
+    #[arg(long, value_name = "X,Y,W,H")]
+    crop: Option<Crop>,
+}
+
+pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
+    if args.path.join(store::MANIFEST).is_file() {
+        let manifest = store::read_manifest(&args.path)?;
+        if args.json {
+            println!("{}", analysis_json(&manifest));
+        } else {
+            print_analysis(&args.path, &manifest);
+        }
+        return Ok(());
+    }
+    let stack = load(&args.path, &LoadOptions { crop: args.crop }, bars)?;
+    if args.json {
+        println!("{}", stack_json(&args.path, &stack));
+    } else {
+        print_stack(&args.path, &stack);
+    }
+    Ok(())
+}
+
+/// The stack's description as JSON; the keys are documented in the README.
+pub fn stack_json(path: &Path, stack: &Btf) -> serde_json::Value {
+    let (views, lights) = (stack.views(), stack.lights());
+    let mean = mean_rgb(stack);
+    serde_json::json!({
+        "kind": "stack",
+        "path": path.display().to_string(),
+        "width": stack.width(),
+        "height": stack.height(),
+        "images": stack.len(),
+        "views": views.len(),
+        "lights": lights.len(),
+        "complete": views.len() * lights.len() == stack.len(),
+        "max_view_theta": max_theta(&views),
+        "max_light_theta": max_theta(&lights),
+        "mean_rgb": mean,
+        "bytes": std::mem::size_of_val(stack.pixels()),
+    })
+}
+
+fn print_stack(path: &Path, stack: &Btf) {
+    let (views, lights) = (stack.views(), stack.lights());
+    let complete = if views.len() * lights.len() == stack.len() {
+        "every view × light pair"
+    } else {
+        "a subset of view × light pairs"
+    };
+    let mean = mean_rgb(stack);
+    println!("{}: BTF stack", path.display());
+    println!("  size    {} x {} pixels", stack.width(), stack.height());
+    println!("  images  {} ({complete})", stack.len());
+    println!("  views   {} distinct, θ up to {}°", views.len(), max_theta(&views));
+    println!("  lights  {} distinct, θ up to {}°", lights.len(), max_theta(&lights));
+    println!("  mean    linear RGB ({:.3}, {:.3}, {:.3})", mean[0], mean[1], mean[2]);
+    println!("  memory  {:.1} MiB as f16", std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64);
+}
+
+fn max_theta(dirs: &[Direction]) -> f32 {
+    dirs.iter().map(|d| d.theta).fold(0.0, f32::max)
+}
+
+fn mean_rgb(stack: &Btf) -> [f64; 3] {
+    let mut sum = [0.0f64; 3];
+    for px in stack.pixels().chunks_exact(3) {
+        for c in 0..3 {
+            sum[c] += px[c].to_f64();
+        }
+    }
+    let n = (stack.pixels().len() / 3).max(1) as f64;
+    sum.map(|s| (s / n * 1e4).round() / 1e4)
+}
+
+/// The analysis' description as JSON; the keys are documented in the README.
+pub fn analysis_json(m: &Manifest) -> serde_json::Value {
+    let levels: Vec<serde_json::Value> = m
+        .levels
+        .iter()
+        .map(|l| serde_json::json!({"width": l.width, "height": l.height, "textons": l.textons, "embedding_dims": l.embedding_dims}))
+        .collect();
+    serde_json::json!({
+        "kind": "analysis",
+        "levels": levels,
+        "k": m.k,
+        "selected": m.selected.len(),
+        "images": m.images,
+        "width": m.width,
+        "height": m.height,
+        "source": m.source.path,
+        "fingerprint": m.source.fingerprint,
+    })
+}
+
+fn print_analysis(path: &Path, m: &Manifest) {
+    println!("{}: texton analysis of {}", path.display(), m.source.path);
+    println!(
+        "  sample  {} x {} pixels, {} images, {} selected",
+        m.width,
+        m.height,
+        m.images,
+        m.selected.len()
+    );
+    for (i, l) in m.levels.iter().enumerate() {
+        println!(
+            "  level {i} {} x {}: {} textons, embedding d = {}, basis {} images ({:.2}% of variance)",
+            l.width,
+            l.height,
+            l.textons,
+            l.embedding_dims,
+            l.basis_rank,
+            100.0 * l.basis_energy
+        );
+    }
+    println!(
+        "  kNN     k = {}, {}x{} neighbourhoods{}",
+        m.k,
+        m.params.neighborhood,
+        m.params.neighborhood,
+        if m.params.tileable { ", tileable" } else { "" }
+    );
+}

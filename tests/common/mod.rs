@@ -1,0 +1,50 @@
+//! Helpers shared by the integration tests: running the real CLI and writing fixtures.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// Runs the built `btfsynth` binary with `args`.
+pub fn btfsynth(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the btfsynth binary runs")
+}
+
+/// Asserts the run failed with exactly one line on stderr that mentions `needle`, and no
+/// panic.
+pub fn assert_one_line_error(out: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success; stderr: {stderr}");
+    assert_eq!(out.status.code(), Some(1), "stderr: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {stderr}");
+    assert!(lines[0].starts_with("error: "), "{stderr}");
+    assert!(lines[0].contains(needle), "error line should mention {needle:?}: {stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+}
+
+/// Writes an 8-bit RGB PNG whose pixel (x, y) is `f(x, y)`.
+pub fn write_png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) {
+    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
+    img.save(path).expect("fixture PNG is written");
+}
+
+/// A deterministic test pattern distinct per `seed`.
+pub fn pattern(seed: u32) -> impl Fn(u32, u32) -> [u8; 3] {
+    move |x, y| {
+        let v = x.wrapping_mul(37).wrapping_add(y.wrapping_mul(91)).wrapping_add(seed.wrapping_mul(53));
+        [(v % 251) as u8, ((v / 3) % 241) as u8, ((v * 7) % 239) as u8]
+    }
+}
+
+/// Names of the entries of `dir` (to check nothing was left behind).
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| rd.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
