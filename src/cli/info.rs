@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args)]
 pub struct InfoArgs {
     /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, or one
-    /// image) or an analysis directory.
+    /// image), an analysis directory, or a mesh (OBJ, OFF, PLY).
     path: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -26,6 +26,23 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
             println!("{}", analysis_json(&manifest));
         } else {
             print_analysis(&args.path, &manifest);
+        }
+        return Ok(());
+    }
+    if is_mesh_path(&args.path) {
+        let mesh = crate::mesh::load(&args.path)?;
+        let summary = crate::mesh::topology::summary(&mesh);
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({
+                    "kind": "mesh", "path": args.path.display().to_string(), "vertices": summary.vertices,
+                    "faces": summary.faces, "edges": summary.edges, "boundary_edges": summary.boundary_edges,
+                    "components": summary.components, "euler_characteristic": summary.euler_characteristic,
+                })
+            );
+        } else {
+            println!("{}: triangle mesh (after welding and validation)\n  {summary}", args.path.display());
         }
         return Ok(());
     }
@@ -137,4 +154,9 @@ fn print_analysis(path: &Path, m: &Manifest) {
         m.params.neighborhood,
         if m.params.tileable { ", tileable" } else { "" }
     );
+}
+
+fn is_mesh_path(path: &Path) -> bool {
+    path.is_file()
+        && path.extension().is_some_and(|e| ["obj", "off", "ply"].iter().any(|m| e.eq_ignore_ascii_case(m)))
 }

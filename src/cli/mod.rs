@@ -6,6 +6,7 @@ mod eval;
 mod gen;
 mod info;
 mod progress;
+mod remesh;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -42,6 +43,8 @@ enum Command {
     Synth(synth::SynthArgs),
     /// Quality of a synthesized result: texton χ², energy, coherence.
     Eval(eval::EvalArgs),
+    /// Remesh a triangle mesh to near-uniform edge length (OBJ/OFF/PLY in, binary PLY out).
+    Remesh(remesh::RemeshArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -65,6 +68,7 @@ pub fn main() -> ExitCode {
         Command::Analyze(args) => analyze::run(args, &bars),
         Command::Synth(args) => synth::run(args, &bars),
         Command::Eval(args) => eval::run(args, &bars),
+        Command::Remesh(args) => remesh::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };
