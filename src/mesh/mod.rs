@@ -22,6 +22,7 @@
 #![warn(missing_docs)]
 
 pub mod bvh;
+pub mod frames;
 pub mod load;
 mod manifold;
 pub mod obj;
