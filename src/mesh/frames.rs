@@ -6,8 +6,11 @@ use glam::Vec3;
 /// One orthonormal, right-handed frame per vertex (s × t = n).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frames {
+    /// The texture's "right" direction, a unit tangent.
     pub s: Vec<Vec3>,
+    /// The texture's "up" direction, `n × s`.
     pub t: Vec<Vec3>,
+    /// The unit surface normal.
     pub n: Vec<Vec3>,
 }
 

@@ -6,6 +6,8 @@
 //!   faces and every vertex a single fan (see [`prepare`]).
 //! - [`load`](mod@load): OBJ (through `tobj`), OFF and PLY (ASCII and binary), picked by extension.
 //! - [`topology`]: edges, one-rings, boundaries, connected components.
+//! - [`field`]: per-vertex direction fields (smooth, one axis, or user constraints) and
+//!   the tangent frames they give.
 //! - [`remesh`]: isotropic remeshing to a target edge length or vertex count
 //!   (Botsch & Kobbelt 2004), which gives synthesis evenly spaced samples.
 //! - [`ply::write`](mod@ply::write): binary PLY output with named per-vertex properties.
@@ -22,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod bvh;
+pub mod field;
 pub mod frames;
 pub mod load;
 mod manifold;
