@@ -173,7 +173,7 @@ fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32
     while let Some(f) = queue.pop_front() {
         patch.faces.push(f);
         let Some(corners) = patch.corners(mesh, f) else { continue };
-        if !within_reach(&corners, reach) {
+        if !within_reach(&corners, reach) || !within_reach_in_space(mesh, f, v, reach) {
             continue;
         }
         for &g in &topology.across[f as usize] {
@@ -191,6 +191,18 @@ fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32
 fn within_reach(corners: &[Vec2; 3], reach: f32) -> bool {
     let nearest = corners.iter().map(|c| c.length()).fold(f32::INFINITY, f32::min);
     let longest = (0..3).map(|k| corners[k].distance(corners[(k + 1) % 3])).fold(0.0, f32::max);
+    nearest <= reach + longest
+}
+
+/// Whether face `f` may still reach into the template measured in space: a straight line
+/// is never longer than a path on the surface, so a face beyond reach in space is beyond
+/// it on the surface too, however the flattening (which closes loops inconsistently around
+/// cones and handles) has placed it.
+fn within_reach_in_space(mesh: &Mesh, f: u32, v: u32, reach: f32) -> bool {
+    let p = mesh.positions();
+    let t = mesh.triangles()[f as usize].map(|c| p[c as usize]);
+    let nearest = t.iter().map(|c| c.distance(p[v as usize])).fold(f32::INFINITY, f32::min);
+    let longest = (0..3).map(|k| t[k].distance(t[(k + 1) % 3])).fold(0.0, f32::max);
     nearest <= reach + longest
 }
 
@@ -224,8 +236,11 @@ fn unfold_ring(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, patch:
     }
 }
 
-/// Places the one unplaced corner of face `g` (if any) rigidly against its opposite edge,
-/// keeping both of its edge lengths and the face's counter-clockwise orientation.
+/// Places the one unplaced corner of face `g` (if any) against its opposite edge a → b:
+/// at its true distance from a and its true angle at a, on the side that keeps the face
+/// counter-clockwise. Anchoring at a (rather than intersecting circles around a and b)
+/// stays well-defined when a and b were placed by different routes and the flat edge no
+/// longer has its length; where it does, this is the rigid placement.
 fn place_apex(mesh: &Mesh, g: u32, patch: &mut Patch) {
     let t = mesh.triangles()[g as usize];
     let p = mesh.positions();
@@ -235,24 +250,12 @@ fn place_apex(mesh: &Mesh, g: u32, patch: &mut Patch) {
             continue;
         }
         let (Some(&pa), Some(&pb)) = (patch.uv.get(&a), patch.uv.get(&b)) else { continue };
-        let la = (p[c as usize] - p[a as usize]).length();
-        let lb = (p[c as usize] - p[b as usize]).length();
-        patch.place(c, apex(pa, pb, la, lb));
+        let (ab, ac) = (p[b as usize] - p[a as usize], p[c as usize] - p[a as usize]);
+        let direction = (pb - pa).try_normalize().unwrap_or(Vec2::X);
+        let turn = Vec2::from_angle(ab.angle_between(ac));
+        patch.place(c, pa + direction.rotate(turn) * ac.length());
         return;
     }
-}
-
-/// The point at distances `la` from `a` and `lb` from `b`, to the left of a → b.
-fn apex(a: Vec2, b: Vec2, la: f32, lb: f32) -> Vec2 {
-    let e = b - a;
-    let d = e.length();
-    if d <= f32::EPSILON {
-        return a;
-    }
-    let u = e / d;
-    let x = (la * la - lb * lb + d * d) / (2.0 * d);
-    let h = (la * la - x * x).max(0.0).sqrt();
-    a + u * x + u.perp() * h
 }
 
 /// The template of `v` resampled from its patch: each pixel takes the barycentric
@@ -477,7 +480,8 @@ mod tests {
         let template = 5;
         let level = surface_level(&mesh, &frames, texel, template).expect("valid");
         assert_eq!(level.slots.len(), mesh.vertex_count() * template * template);
-        let mut default = 0;
+        let limit = (template / 2) as f32 + SQUARE_TOLERANCE;
+        let (mut default, mut folded, mut shifted) = (0, 0, 0);
         for v in 0..mesh.vertex_count() {
             for s in level.slots_of(v) {
                 if s.vertices[0] == OUTSIDE {
@@ -493,9 +497,18 @@ mod tests {
             assert!(on_v >= 0.99, "centre of {v}: {centre:?}");
             let shifts = level.shifts_of(v);
             assert_eq!(shifts[0], (v as u32, [0.0, 0.0]));
-            let limit = (template / 2) as f32 + SQUARE_TOLERANCE;
             assert!(shifts.iter().all(|(_, o)| o[0].abs() <= limit && o[1].abs() <= limit));
+            // Unfolding lays paths on the surface flat, so nothing should land much nearer
+            // than it is in space, as it would on a face folded back over its edge.
+            for &(u, o) in &shifts[1..] {
+                let chord = p[u as usize].distance(p[v]);
+                folded += usize::from(Vec2::from(o).length() * texel < 0.8 * chord);
+                shifted += 1;
+            }
         }
+        // About 1% (sharp cones, where the exponential map stretches angles); a face
+        // flattened onto the wrong side of its edge folds nearly 90%.
+        assert!(folded * 50 < shifted, "{folded} of {shifted} shifts folded back");
         // The patches cover the templates almost everywhere on a closed-ish mesh.
         assert!(default * 20 < level.slots.len(), "{default} default slots");
     }
