@@ -10,6 +10,7 @@
 pub mod engine;
 pub mod plane;
 pub mod sample;
+pub mod surface;
 pub mod target;
 
 pub use engine::{Search, State, VisitOrder};
