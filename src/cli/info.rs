@@ -29,6 +29,20 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
         }
         return Ok(());
     }
+    if let Some(surface) = surface_header(&args.path)? {
+        if args.json {
+            println!("{surface}");
+        } else {
+            println!(
+                "{}: surface texton map of {} vertices, {} faces, from the analysis {}",
+                args.path.display(),
+                surface["vertices"],
+                surface["faces"],
+                surface["analysis"].as_str().unwrap_or("")
+            );
+        }
+        return Ok(());
+    }
     if is_mesh_path(&args.path) {
         let mesh = crate::mesh::load(&args.path)?;
         let summary = crate::mesh::topology::summary(&mesh);
@@ -159,4 +173,29 @@ fn print_analysis(path: &Path, m: &Manifest) {
 fn is_mesh_path(path: &Path) -> bool {
     path.is_file()
         && path.extension().is_some_and(|e| ["obj", "off", "ply"].iter().any(|m| e.eq_ignore_ascii_case(m)))
+}
+
+/// The description of a PLY written by `synth` (recognised by its header comment), or None.
+fn surface_header(path: &Path) -> Result<Option<serde_json::Value>> {
+    if !path.is_file() || !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+    let end = bytes.windows(10).position(|w| w == b"end_header").unwrap_or(bytes.len().min(4096));
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    if !header.lines().any(|l| l.trim() == "comment btfsynth surface") {
+        return Ok(None);
+    }
+    let field = |prefix: &str| header.lines().find_map(|l| l.strip_prefix(prefix)).map(str::trim);
+    let count = |name: &str| field(&format!("element {name} ")).and_then(|n| n.parse::<u64>().ok()).unwrap_or(0);
+    let params: serde_json::Value = field("comment params ").and_then(|p| serde_json::from_str(p).ok()).unwrap_or_default();
+    Ok(Some(serde_json::json!({
+        "kind": "surface",
+        "path": path.display().to_string(),
+        "vertices": count("vertex"),
+        "faces": count("face"),
+        "analysis": field("comment analysis ").unwrap_or(""),
+        "mesh": field("comment mesh ").unwrap_or(""),
+        "params": params,
+    })))
 }

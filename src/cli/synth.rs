@@ -1,11 +1,14 @@
-//! `btfsynth synth`: texton map synthesis (plane mode).
+//! `btfsynth synth`: texton map synthesis on a mesh (surface mode) or a grid (plane mode).
 
 use super::progress::Bars;
 use crate::fsutil::{check_target, write_file_atomic};
+use crate::mesh::field::Orientation;
 use crate::synth::plane::{synthesize_plane, write_plane};
-use crate::synth::{Preset, Sample, Search, SynthParams};
-use anyhow::{bail, Result};
-use std::path::PathBuf;
+use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
+use crate::synth::{LevelReport, Preset, Sample, Search, SynthParams};
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum SearchKind {
@@ -16,17 +19,33 @@ enum SearchKind {
 }
 
 #[derive(clap::Args)]
-#[command(after_help = "Example: btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/\n\n\
-Surface synthesis on meshes is not in this version yet; --plane synthesizes on a regular grid.")]
+#[command(after_help = "Examples:\n  btfsynth synth pebbles.analysis/ bunny.obj --texels-across 256 -o bunny.ply\n  \
+btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/")]
 pub struct SynthArgs {
     /// The analysis directory (from `btfsynth analyze`).
     analysis: PathBuf,
-    /// Synthesize on a regular W×H grid (2D texture synthesis), e.g. 128x128.
-    #[arg(long, value_name = "WxH", required = true, value_parser = parse_size)]
-    plane: (usize, usize),
-    /// Output directory.
-    #[arg(short, long, value_name = "DIR")]
+    /// The mesh to cover (OBJ, OFF, PLY); omit with --plane.
+    #[arg(required_unless_present = "plane", conflicts_with = "plane")]
+    mesh: Option<PathBuf>,
+    /// Synthesize on a regular W×H grid instead of a mesh (2D texture synthesis).
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    plane: Option<(usize, usize)>,
+    /// Output: a binary PLY for a mesh, a directory for --plane.
+    #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
+    /// Sample texels per model unit (the texture's size on the surface).
+    #[arg(long, group = "density")]
+    scale: Option<f32>,
+    /// Sample texels across the mesh's largest bounding-box side [default: 4 × the sample width].
+    #[arg(long, group = "density")]
+    texels_across: Option<f32>,
+    /// Vertices of the finest synthesis mesh (one vertex spacing = one texel).
+    #[arg(long, group = "density")]
+    vertices: Option<usize>,
+    /// Tangent directions: smooth (a relaxed field), axis:x,y,z (a world direction
+    /// projected), or a JSON file of constraints {"constraints": [{"vertex"|"point", "direction"}]}.
+    #[arg(long, default_value = "smooth")]
+    orient: String,
     /// Candidates per kNN list (at most the analysis' k; default: the analysis' k).
     #[arg(long)]
     k: Option<usize>,
@@ -81,28 +100,88 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let params = SynthParams {
-        preset: Preset::by_name(&args.preset)?,
-        search,
-        neighborhood: args.neighborhood,
-        seed: args.seed,
-    };
-    let result = synthesize_plane(&sample, args.plane, &params, bars)?;
-    let params_json = serde_json::json!({
+    let params = SynthParams { preset: Preset::by_name(&args.preset)?, search, neighborhood: args.neighborhood, seed: args.seed };
+    let mut params_json = serde_json::json!({
         "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
     });
-    let written = write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
+    let reports = match (&args.mesh, args.plane) {
+        (Some(mesh), None) => {
+            let density = density(&args, manifest.width);
+            params_json["orient"] = args.orient.clone().into();
+            params_json["density"] = format!("{density:?}").into();
+            surface(&args, mesh, &sample, &params, density, levels, &mut params_json, bars)?
+        }
+        (None, Some(size)) => {
+            let result = synthesize_plane(&sample, size, &params, bars)?;
+            let written = write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
+            print_reports(&result.reports);
+            eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
+            result.reports
+        }
+        _ => bail!("give either a MESH or --plane WxH"),
+    };
     if let Some(report) = &args.report {
-        let json = serde_json::json!({"params": params_json, "levels": result.reports});
+        let json = serde_json::json!({"params": params_json, "levels": reports});
         write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
-    for r in &result.reports {
+    Ok(())
+}
+
+fn density(args: &SynthArgs, sample_width: usize) -> Density {
+    match (args.scale, args.texels_across, args.vertices) {
+        (Some(s), _, _) => Density::Scale(s),
+        (_, _, Some(n)) => Density::Vertices(n),
+        (_, Some(n), _) => Density::TexelsAcross(n),
+        _ => Density::TexelsAcross(4.0 * sample_width as f32),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn surface(
+    args: &SynthArgs,
+    mesh_path: &Path,
+    sample: &Sample,
+    params: &SynthParams,
+    density: Density,
+    levels: usize,
+    params_json: &mut serde_json::Value,
+    bars: &Bars,
+) -> Result<Vec<LevelReport>> {
+    let orientation = Orientation::parse(&args.orient)?;
+    let mesh = crate::mesh::load(&mesh_path)?;
+    let started = Instant::now();
+    let pyramid = build_pyramid(&mesh, density, levels, &orientation, params, bars)
+        .with_context(|| format!("preparing {}", mesh_path.display()))?;
+    for (l, level) in pyramid.levels.iter().enumerate() {
+        eprintln!("  mesh level {l}: {} vertices, texel {:.4e}, {}", level.mesh.vertex_count(), level.texel, level.edges);
+    }
+    let (state, reports) = synthesize_surface(&pyramid, sample, params, bars)?;
+    print_reports(&reports);
+    // Timings go to the report only: the PLY must be identical for identical inputs.
+    let comments = vec![
+        "btfsynth surface".to_string(),
+        format!("analysis {}", args.analysis.display()),
+        format!("mesh {}", mesh_path.display()),
+        format!("params {}", params_json),
+    ];
+    params_json["prepare_seconds"] =
+        serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
+    write_surface_ply(&args.output, &pyramid.levels[0], &state, &comments)?;
+    eprintln!(
+        "wrote {} ({} vertices) in {:.1} s",
+        args.output.display(),
+        pyramid.levels[0].mesh.vertex_count(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(reports)
+}
+
+fn print_reports(reports: &[LevelReport]) {
+    for r in reports {
         eprintln!(
             "  level {}: {} vertices, {:.2} s, {:.1} candidates, mean best distance {:.4}",
             r.level, r.vertices, r.seconds, r.mean_candidates, r.mean_best_distance
         );
     }
-    eprintln!("wrote a {}x{} plane to {}", args.plane.0, args.plane.1, written.display());
-    Ok(())
 }

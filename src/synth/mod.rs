@@ -11,6 +11,7 @@ pub mod engine;
 pub mod plane;
 pub mod sample;
 pub mod surface;
+pub mod surface_map;
 pub mod target;
 
 pub use engine::{Search, State, VisitOrder};

@@ -1,0 +1,56 @@
+//! `synth ANALYSIS MESH`: a surface texton map on a real mesh, deterministic, described by
+//! `info`, and bad input refused.
+
+mod common;
+
+use common::{assert_one_line_error, btfsynth};
+
+fn analysis(dir: &std::path::Path) -> std::path::PathBuf {
+    let out = dir.join("analysis");
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let r = btfsynth(&["-q", "analyze", texture, "--crop", "0,0,48,48", "--textons", "32", "--levels", "2", "-o", out.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    out
+}
+
+#[test]
+fn surface_synthesis_is_deterministic_and_described_by_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = analysis(dir.path());
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+    let run = |name: &str, seed: &str| {
+        let out = dir.path().join(name);
+        let r = btfsynth(&["-q", "synth", a.to_str().unwrap(), bunny, "--vertices", "4000", "--seed", seed, "--orient", "axis:0,1,0", "-o", out.to_str().unwrap()]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        out
+    };
+    let (one, two, other) = (run("one.ply", "1"), run("two.ply", "1"), run("other.ply", "2"));
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap(), "same seed, same bytes");
+    assert_ne!(std::fs::read(&one).unwrap(), std::fs::read(&other).unwrap());
+    let info = btfsynth(&["info", one.to_str().unwrap(), "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(json["kind"], "surface");
+    assert_eq!(json["analysis"], a.to_str().unwrap());
+    let vertices = json["vertices"].as_u64().unwrap();
+    assert!((3400..=4600).contains(&vertices), "{vertices}");
+    assert!(json["faces"].as_u64().unwrap() > vertices);
+    // The PLY is a valid mesh for any reader.
+    let mesh = btfsynth(&["info", one.to_str().unwrap()]);
+    assert!(mesh.status.success());
+}
+
+#[test]
+fn bad_surface_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = analysis(dir.path());
+    let a = a.to_str().unwrap();
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+    let out = dir.path().join("out.ply");
+    let o = out.to_str().unwrap();
+    assert_one_line_error(&btfsynth(&["synth", a, bunny, "--orient", "axis:0,0", "-o", o]), "axis");
+    assert_one_line_error(&btfsynth(&["synth", a, bunny, "--scale", "1e9", "-o", o]), "vertices");
+    let nan = dir.path().join("nan.off");
+    std::fs::write(&nan, "OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n").unwrap();
+    assert_one_line_error(&btfsynth(&["synth", a, nan.to_str().unwrap(), "-o", o]), "nan.off");
+    assert!(!out.exists(), "nothing written");
+}
