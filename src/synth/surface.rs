@@ -467,8 +467,7 @@ mod tests {
         assert!((pairs[0].1 - 0.25).abs() < 1e-5 && (pairs[1].1 - 0.75).abs() < 1e-5);
     }
 
-    #[test]
-    fn bunny_slots_are_convex_combinations() {
+    fn bunny() -> (Mesh, Frames, f32) {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
         let mesh = crate::mesh::load(std::path::Path::new(path)).expect("bundled mesh").with_normals();
         let normals = mesh.normals().expect("computed").to_vec();
@@ -477,6 +476,22 @@ mod tests {
         let p = mesh.positions();
         let texel = edges.iter().map(|[a, b]| p[*a as usize].distance(p[*b as usize])).sum::<f32>()
             / edges.len() as f32;
+        (mesh, frames, texel)
+    }
+
+    #[test]
+    fn same_level_whatever_the_thread_count() {
+        let (mesh, frames, texel) = bunny();
+        let many = surface_level(&mesh, &frames, texel, 5).expect("valid");
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool");
+        let one = pool.install(|| surface_level(&mesh, &frames, texel, 5)).expect("valid");
+        assert_eq!((many.slots, many.shift_start, many.shifts), (one.slots, one.shift_start, one.shifts));
+    }
+
+    #[test]
+    fn bunny_slots_are_convex_combinations() {
+        let (mesh, frames, texel) = bunny();
+        let p = mesh.positions();
         let template = 5;
         let level = surface_level(&mesh, &frames, texel, template).expect("valid");
         assert_eq!(level.slots.len(), mesh.vertex_count() * template * template);
