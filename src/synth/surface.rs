@@ -221,6 +221,8 @@ fn unfold_ring(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, patch:
         .map(|k| {
             (p[ring[k] as usize] - centre).angle_between(p[ring[(k + 1) % ring.len()] as usize] - centre)
         })
+        // A zero-length edge has no angle; it then takes no room in the fan.
+        .map(|a| if a.is_finite() { a } else { 0.0 })
         .collect();
     let total: f32 = angles.iter().sum();
     let scale = if closed || total > TAU { TAU / total.max(f32::EPSILON) } else { 1.0 };
@@ -297,7 +299,8 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize) -> Vec<Slo
 /// and renormalised); `None` outside or for a degenerate triangle.
 fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
     let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-    if area.abs() <= 1e-9 {
+    // NaN too: a patch vertex at NaN (from a zero-length edge) yields no slot.
+    if area.is_nan() || area.abs() <= 1e-9 {
         return None;
     }
     let w1 = (q - t[0]).perp_dot(t[2] - t[0]) / area;
