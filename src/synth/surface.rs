@@ -221,6 +221,8 @@ fn unfold_ring(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, patch:
         .map(|k| {
             (p[ring[k] as usize] - centre).angle_between(p[ring[(k + 1) % ring.len()] as usize] - centre)
         })
+        // A zero-length edge has no angle; it then takes no room in the fan.
+        .map(|a| if a.is_finite() { a } else { 0.0 })
         .collect();
     let total: f32 = angles.iter().sum();
     let scale = if closed || total > TAU { TAU / total.max(f32::EPSILON) } else { 1.0 };
@@ -297,7 +299,8 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize) -> Vec<Slo
 /// and renormalised); `None` outside or for a degenerate triangle.
 fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
     let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-    if area.abs() <= 1e-9 {
+    // NaN too: a patch vertex at NaN (from a zero-length edge) yields no slot.
+    if area.is_nan() || area.abs() <= 1e-9 {
         return None;
     }
     let w1 = (q - t[0]).perp_dot(t[2] - t[0]) / area;
@@ -467,8 +470,7 @@ mod tests {
         assert!((pairs[0].1 - 0.25).abs() < 1e-5 && (pairs[1].1 - 0.75).abs() < 1e-5);
     }
 
-    #[test]
-    fn bunny_slots_are_convex_combinations() {
+    fn bunny() -> (Mesh, Frames, f32) {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
         let mesh = crate::mesh::load(std::path::Path::new(path)).expect("bundled mesh").with_normals();
         let normals = mesh.normals().expect("computed").to_vec();
@@ -477,6 +479,22 @@ mod tests {
         let p = mesh.positions();
         let texel = edges.iter().map(|[a, b]| p[*a as usize].distance(p[*b as usize])).sum::<f32>()
             / edges.len() as f32;
+        (mesh, frames, texel)
+    }
+
+    #[test]
+    fn same_level_whatever_the_thread_count() {
+        let (mesh, frames, texel) = bunny();
+        let many = surface_level(&mesh, &frames, texel, 5).expect("valid");
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool");
+        let one = pool.install(|| surface_level(&mesh, &frames, texel, 5)).expect("valid");
+        assert_eq!((many.slots, many.shift_start, many.shifts), (one.slots, one.shift_start, one.shifts));
+    }
+
+    #[test]
+    fn bunny_slots_are_convex_combinations() {
+        let (mesh, frames, texel) = bunny();
+        let p = mesh.positions();
         let template = 5;
         let level = surface_level(&mesh, &frames, texel, template).expect("valid");
         assert_eq!(level.slots.len(), mesh.vertex_count() * template * template);
