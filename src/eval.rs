@@ -48,10 +48,11 @@ pub fn energy(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f64 {
     total / level.vertices.max(1) as f64
 }
 
-/// Mean size of the groups of grid vertices connected through neighbours whose coordinates
-/// differ by exactly their grid offset (wrapping on tileable samples).
-pub fn grid_coherence(width: usize, height: usize, state: &State, sample: &SampleLevel) -> f64 {
-    let mut parent: Vec<usize> = (0..width * height).collect();
+/// Mean size of the groups of vertices connected through neighbours (patch vertices at most
+/// 1.5 texels away) whose sample coordinates differ by their offset, i.e. copied together
+/// (offsets wrap on tileable samples). Works for grids and meshes alike.
+pub fn coherence(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f64 {
+    let mut parent: Vec<usize> = (0..level.vertices).collect();
     fn root(parent: &mut [usize], mut v: usize) -> usize {
         while parent[v] != v {
             parent[v] = parent[parent[v]];
@@ -59,25 +60,22 @@ pub fn grid_coherence(width: usize, height: usize, state: &State, sample: &Sampl
         }
         v
     }
-    let follows = |a: usize, b: usize, dx: i64, dy: i64| {
-        let (ua, ub) = (state.uv[a], state.uv[b]);
-        let expect = sample.bring_inside(ua[0] as i64 + dx, ua[1] as i64 + dy);
-        expect == (ub[0] as usize, ub[1] as usize)
-    };
-    for y in 0..height {
-        for x in 0..width {
-            let v = y * width + x;
-            for (dx, dy, ok) in [(1, 0, x + 1 < width), (0, 1, y + 1 < height)] {
-                let n = (y + dy as usize) * width + x + dx as usize;
-                if ok && follows(v, n, dx, dy) {
-                    let (a, b) = (root(&mut parent, v), root(&mut parent, n));
-                    parent[a.max(b)] = a.min(b);
-                }
+    for v in 0..level.vertices {
+        let [x, y] = state.uv[v];
+        for &(u, [dx, dy]) in level.shifts_of(v) {
+            let (u, near) = (u as usize, dx * dx + dy * dy <= 2.25);
+            if u == v || !near {
+                continue;
+            }
+            let expect = sample.bring_inside(x as i64 + dx.round() as i64, y as i64 + dy.round() as i64);
+            if expect == (state.uv[u][0] as usize, state.uv[u][1] as usize) {
+                let (a, b) = (root(&mut parent, v), root(&mut parent, u));
+                parent[a.max(b)] = a.min(b);
             }
         }
     }
-    let components = (0..width * height).filter(|&v| root(&mut parent, v) == v).count();
-    (width * height) as f64 / components.max(1) as f64
+    let components = (0..level.vertices).filter(|&v| root(&mut parent, v) == v).count();
+    level.vertices as f64 / components.max(1) as f64
 }
 
 #[cfg(test)]

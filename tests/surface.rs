@@ -8,7 +8,19 @@ use common::{assert_one_line_error, btfsynth};
 fn analysis(dir: &std::path::Path) -> std::path::PathBuf {
     let out = dir.join("analysis");
     let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
-    let r = btfsynth(&["-q", "analyze", texture, "--crop", "0,0,48,48", "--textons", "32", "--levels", "2", "-o", out.to_str().unwrap()]);
+    let r = btfsynth(&[
+        "-q",
+        "analyze",
+        texture,
+        "--crop",
+        "0,0,48,48",
+        "--textons",
+        "32",
+        "--levels",
+        "2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     out
 }
@@ -20,7 +32,20 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
     let run = |name: &str, seed: &str| {
         let out = dir.path().join(name);
-        let r = btfsynth(&["-q", "synth", a.to_str().unwrap(), bunny, "--vertices", "4000", "--seed", seed, "--orient", "axis:0,1,0", "-o", out.to_str().unwrap()]);
+        let r = btfsynth(&[
+            "-q",
+            "synth",
+            a.to_str().unwrap(),
+            bunny,
+            "--vertices",
+            "4000",
+            "--seed",
+            seed,
+            "--orient",
+            "axis:0,1,0",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         out
     };
@@ -34,9 +59,12 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let vertices = json["vertices"].as_u64().unwrap();
     assert!((3400..=4600).contains(&vertices), "{vertices}");
     assert!(json["faces"].as_u64().unwrap() > vertices);
-    // The PLY is a valid mesh for any reader.
-    let mesh = btfsynth(&["info", one.to_str().unwrap()]);
-    assert!(mesh.status.success());
+    let eval = btfsynth(&["eval", a.to_str().unwrap(), one.to_str().unwrap(), "--json"]);
+    assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
+    let q: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
+    assert!(q["chi2"].as_f64().unwrap() < 0.5, "{q}");
+    assert!(q["energy"].as_f64().unwrap().is_finite());
+    assert!(q["coherence"].as_f64().unwrap() >= 1.0, "{q}");
 }
 
 #[test]

@@ -127,7 +127,7 @@ fn bad_synthesis_inputs_leave_nothing_behind() {
         "unknown preset",
     );
     assert_eq!(btfsynth(&["synth", a, "--plane", "0x8", "-o", o]).status.code(), Some(2));
-    assert_one_line_error(&btfsynth(&["eval", a, missing.to_str().unwrap()]), "not a plane result");
+    assert_one_line_error(&btfsynth(&["eval", a, missing.to_str().unwrap()]), "not a result");
     assert_eq!(
         entries(dir.path()),
         vec!["analysis".to_string(), "checker.png".to_string()],

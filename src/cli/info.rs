@@ -187,8 +187,10 @@ fn surface_header(path: &Path) -> Result<Option<serde_json::Value>> {
         return Ok(None);
     }
     let field = |prefix: &str| header.lines().find_map(|l| l.strip_prefix(prefix)).map(str::trim);
-    let count = |name: &str| field(&format!("element {name} ")).and_then(|n| n.parse::<u64>().ok()).unwrap_or(0);
-    let params: serde_json::Value = field("comment params ").and_then(|p| serde_json::from_str(p).ok()).unwrap_or_default();
+    let count =
+        |name: &str| field(&format!("element {name} ")).and_then(|n| n.parse::<u64>().ok()).unwrap_or(0);
+    let params: serde_json::Value =
+        field("comment params ").and_then(|p| serde_json::from_str(p).ok()).unwrap_or_default();
     Ok(Some(serde_json::json!({
         "kind": "surface",
         "path": path.display().to_string(),

@@ -19,8 +19,10 @@ enum SearchKind {
 }
 
 #[derive(clap::Args)]
-#[command(after_help = "Examples:\n  btfsynth synth pebbles.analysis/ bunny.obj --texels-across 256 -o bunny.ply\n  \
-btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/")]
+#[command(
+    after_help = "Examples:\n  btfsynth synth pebbles.analysis/ bunny.obj --texels-across 256 -o bunny.ply\n  \
+btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/"
+)]
 pub struct SynthArgs {
     /// The analysis directory (from `btfsynth analyze`).
     analysis: PathBuf,
@@ -100,7 +102,12 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let params = SynthParams { preset: Preset::by_name(&args.preset)?, search, neighborhood: args.neighborhood, seed: args.seed };
+    let params = SynthParams {
+        preset: Preset::by_name(&args.preset)?,
+        search,
+        neighborhood: args.neighborhood,
+        seed: args.seed,
+    };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
@@ -114,7 +121,8 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         }
         (None, Some(size)) => {
             let result = synthesize_plane(&sample, size, &params, bars)?;
-            let written = write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
+            let written =
+                write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
             print_reports(&result.reports);
             eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
             result.reports
@@ -149,12 +157,17 @@ fn surface(
     bars: &Bars,
 ) -> Result<Vec<LevelReport>> {
     let orientation = Orientation::parse(&args.orient)?;
-    let mesh = crate::mesh::load(&mesh_path)?;
+    let mesh = crate::mesh::load(mesh_path)?;
     let started = Instant::now();
     let pyramid = build_pyramid(&mesh, density, levels, &orientation, params, bars)
         .with_context(|| format!("preparing {}", mesh_path.display()))?;
     for (l, level) in pyramid.levels.iter().enumerate() {
-        eprintln!("  mesh level {l}: {} vertices, texel {:.4e}, {}", level.mesh.vertex_count(), level.texel, level.edges);
+        eprintln!(
+            "  mesh level {l}: {} vertices, texel {:.4e}, {}",
+            level.mesh.vertex_count(),
+            level.texel,
+            level.edges
+        );
     }
     let (state, reports) = synthesize_surface(&pyramid, sample, params, bars)?;
     print_reports(&reports);
@@ -163,10 +176,15 @@ fn surface(
         "btfsynth surface".to_string(),
         format!("analysis {}", args.analysis.display()),
         format!("mesh {}", mesh_path.display()),
+        format!("texel {}", pyramid.levels[0].texel),
         format!("params {}", params_json),
     ];
-    params_json["prepare_seconds"] =
-        serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
+    params_json["prepare_seconds"] = serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
+    params_json["mesh_levels"] = pyramid
+        .levels
+        .iter()
+        .map(|l| serde_json::json!({"vertices": l.mesh.vertex_count(), "texel": l.texel, "edge_mean": l.edges.mean, "edge_min": l.edges.min, "edge_max": l.edges.max, "edge_cv": l.edges.coefficient_of_variation}))
+        .collect();
     write_surface_ply(&args.output, &pyramid.levels[0], &state, &comments)?;
     eprintln!(
         "wrote {} ({} vertices) in {:.1} s",
