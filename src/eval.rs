@@ -49,8 +49,9 @@ pub fn energy(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f64 {
 }
 
 /// Mean size of the groups of vertices connected through neighbours (patch vertices at most
-/// 1.5 texels away) whose sample coordinates differ by their offset, i.e. copied together
-/// (offsets wrap on tileable samples). Works for grids and meshes alike.
+/// 1.5 texels away) whose sample coordinates differ by their offset to within a texel, i.e.
+/// copied together (differences wrap on tileable samples). Exact on grids, where offsets
+/// are whole texels; works for meshes alike.
 pub fn coherence(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f64 {
     let mut parent: Vec<usize> = (0..level.vertices).collect();
     fn root(parent: &mut [usize], mut v: usize) -> usize {
@@ -60,15 +61,22 @@ pub fn coherence(level: &TargetLevel, state: &State, sample: &SampleLevel) -> f6
         }
         v
     }
+    let wrap = |d: i32, n: usize| {
+        if sample.tileable {
+            (d + n as i32 / 2).rem_euclid(n as i32) - n as i32 / 2
+        } else {
+            d
+        }
+    };
     for v in 0..level.vertices {
-        let [x, y] = state.uv[v];
         for &(u, [dx, dy]) in level.shifts_of(v) {
-            let (u, near) = (u as usize, dx * dx + dy * dy <= 2.25);
-            if u == v || !near {
+            let u = u as usize;
+            if u == v || dx * dx + dy * dy > 2.25 {
                 continue;
             }
-            let expect = sample.bring_inside(x as i64 + dx.round() as i64, y as i64 + dy.round() as i64);
-            if expect == (state.uv[u][0] as usize, state.uv[u][1] as usize) {
+            let ex = wrap(state.uv[u][0] - state.uv[v][0], sample.width) as f32 - dx;
+            let ey = wrap(state.uv[u][1] - state.uv[v][1], sample.height) as f32 - dy;
+            if ex.abs() < 1.0 && ey.abs() < 1.0 {
                 let (a, b) = (root(&mut parent, v), root(&mut parent, u));
                 parent[a.max(b)] = a.min(b);
             }

@@ -5,7 +5,9 @@ use crate::analysis::pipeline::{analyze, AnalysisParams};
 use crate::analysis::store;
 use crate::btf::gen::{generate, GenParams, MaterialKind};
 use crate::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptions};
+use crate::mesh::field::Orientation;
 use crate::synth::plane::{synthesize_plane, write_plane};
+use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
 use crate::synth::{Preset, Sample, Search, SynthParams};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
@@ -34,7 +36,8 @@ fn data_dir(given: Option<PathBuf>) -> PathBuf {
 pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     std::fs::create_dir_all(&args.output).map_err(|e| crate::Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
-    eprintln!("[1/4] generating a 64x64 pebbles BTF on a 16-direction dome (256 images)");
+    let data = data_dir(args.data.clone());
+    eprintln!("[1/5] generating a 64x64 pebbles BTF on a 16-direction dome (256 images)");
     let params = GenParams { size: 64, directions: DirectionSet::Grid(16), ..GenParams::default() };
     let stack = generate(MaterialKind::Pebbles, &params, bars)?;
     let source = serde_json::json!({
@@ -44,7 +47,7 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     let reloaded = load(&out("stack"), &LoadOptions::default(), bars)?;
     println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&out("stack"), &reloaded))?);
 
-    eprintln!("[2/4] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
+    eprintln!("[2/5] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
     analyse_and_synthesize(
         &reloaded,
         &out("stack"),
@@ -54,11 +57,11 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
         bars,
     )?;
 
-    let texture = data_dir(args.data).join("gravel-128.png");
-    eprintln!("[3/4] reading the bundled photograph {} as a one-image BTF", texture.display());
+    let texture = data.join("gravel-128.png");
+    eprintln!("[3/5] reading the bundled photograph {} as a one-image BTF", texture.display());
     let photo = load(&texture, &LoadOptions::default(), bars)?;
     println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&texture, &photo))?);
-    eprintln!("[4/4] texture synthesis from the photograph: analysis and a 192x192 plane");
+    eprintln!("[4/5] texture synthesis from the photograph: analysis and a 192x192 plane");
     analyse_and_synthesize(
         &photo,
         &texture,
@@ -67,13 +70,41 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
         &out("gravel-plane"),
         bars,
     )?;
+    let bunny = data.join("bunny-1k8.obj");
+    eprintln!("[5/5] the pebbles BTF on {}: a 20k-vertex surface texton map", bunny.display());
+    surface_map(&out("analysis"), &bunny, &out("bunny.ply"), bars)?;
     eprintln!(
         "done: look at {}/result.png (the photograph, resynthesized), {}/level0_textons.png \
-         (a BTF's texton map) and {}/btf.json",
+         (a BTF's texton map), {} (open it in MeshLab or Blender; per vertex: texton, u, v, \
+         frame) and {}/btf.json",
         out("gravel-plane").display(),
         out("analysis").display(),
+        out("bunny.ply").display(),
         out("stack").display()
     );
+    Ok(())
+}
+
+/// Synthesizes the analysis in `analysis_dir` onto `mesh` (20k vertices, smooth frames).
+fn surface_map(analysis_dir: &Path, mesh: &Path, output: &Path, bars: &Bars) -> Result<()> {
+    let sample = Sample::open(analysis_dir, 3)?;
+    let params = SynthParams {
+        preset: Preset::tong2002(),
+        search: Search::KCoherence { k: 11 },
+        neighborhood: 5,
+        seed: 0,
+    };
+    let input = crate::mesh::load(mesh)?;
+    let pyramid = build_pyramid(&input, Density::Vertices(20_000), 3, &Orientation::Smooth, &params, bars)?;
+    let (state, _) = synthesize_surface(&pyramid, &sample, &params, bars)?;
+    let comments = [
+        "btfsynth surface".to_string(),
+        format!("analysis {}", analysis_dir.display()),
+        format!("mesh {}", mesh.display()),
+        format!("texel {}", pyramid.levels[0].texel),
+        "params {\"preset\": \"tong2002\", \"k\": 11, \"levels\": 3, \"neighborhood\": 5, \"orient\": \"smooth\", \"seed\": 0}".to_string(),
+    ];
+    write_surface_ply(output, &pyramid.levels[0], &state, &comments)?;
     Ok(())
 }
 
