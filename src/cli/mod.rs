@@ -39,7 +39,7 @@ enum Command {
     Gen(gen::GenArgs),
     /// Texton analysis of a stack: filter bank, textons, Γ, pyramid, kNN lists (Tong §4, §5.2).
     Analyze(analyze::AnalyzeArgs),
-    /// Synthesize a texton map from an analysis (plane mode: a regular grid).
+    /// Synthesize a surface texton map on a mesh (or, with --plane, on a regular grid).
     Synth(synth::SynthArgs),
     /// Quality of a synthesized result: texton χ², energy, coherence.
     Eval(eval::EvalArgs),
