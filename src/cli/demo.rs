@@ -97,14 +97,8 @@ fn surface_map(analysis_dir: &Path, mesh: &Path, output: &Path, bars: &Bars) -> 
     let input = crate::mesh::load(mesh)?;
     let pyramid = build_pyramid(&input, Density::Vertices(20_000), 3, &Orientation::Smooth, &params, bars)?;
     let (state, _) = synthesize_surface(&pyramid, &sample, &params, bars)?;
-    let comments = [
-        "btfsynth surface".to_string(),
-        format!("analysis {}", analysis_dir.display()),
-        format!("mesh {}", mesh.display()),
-        format!("texel {}", pyramid.levels[0].texel),
-        "params {\"preset\": \"tong2002\", \"k\": 11, \"levels\": 3, \"neighborhood\": 5, \"orient\": \"smooth\", \"seed\": 0}".to_string(),
-    ];
-    write_surface_ply(output, &pyramid.levels[0], &state, &comments)?;
+    let params_json = serde_json::json!({"preset": "tong2002", "k": 11, "levels": 3, "neighborhood": 5, "orient": "smooth", "seed": 0});
+    write_surface_ply(output, &pyramid.levels[0], &state, (analysis_dir, mesh), &params_json)?;
     Ok(())
 }
 

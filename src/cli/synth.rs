@@ -171,21 +171,14 @@ fn surface(
     }
     let (state, reports) = synthesize_surface(&pyramid, sample, params, bars)?;
     print_reports(&reports);
-    // Timings go to the report only: the PLY must be identical for identical inputs.
-    let comments = vec![
-        "btfsynth surface".to_string(),
-        format!("analysis {}", args.analysis.display()),
-        format!("mesh {}", mesh_path.display()),
-        format!("texel {}", pyramid.levels[0].texel),
-        format!("params {}", params_json),
-    ];
+    // Timings go to the report only, after the PLY is written.
+    write_surface_ply(&args.output, &pyramid.levels[0], &state, (&args.analysis, mesh_path), params_json)?;
     params_json["prepare_seconds"] = serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
     params_json["mesh_levels"] = pyramid
         .levels
         .iter()
         .map(|l| serde_json::json!({"vertices": l.mesh.vertex_count(), "texel": l.texel, "edge_mean": l.edges.mean, "edge_min": l.edges.min, "edge_max": l.edges.max, "edge_cv": l.edges.coefficient_of_variation}))
         .collect();
-    write_surface_ply(&args.output, &pyramid.levels[0], &state, &comments)?;
     eprintln!(
         "wrote {} ({} vertices) in {:.1} s",
         args.output.display(),

@@ -137,8 +137,23 @@ pub fn synthesize_surface(
 }
 
 /// Writes the finest level with its map as a binary PLY: position, normal, frame direction
-/// s (`sx sy sz`), `texton`, `u`, `v` (sample texels), and `comments` in the header.
-pub fn write_surface_ply(path: &Path, level: &MeshLevel, state: &State, comments: &[String]) -> Result<()> {
+/// s (`sx sy sz`), `texton`, `u`, `v` (sample texels); the header comments record the
+/// analysis, the mesh, the texel size and `params` (which must hold no timings: equal
+/// inputs give equal bytes).
+pub fn write_surface_ply(
+    path: &Path,
+    level: &MeshLevel,
+    state: &State,
+    (analysis, mesh): (&Path, &Path),
+    params: &serde_json::Value,
+) -> Result<()> {
+    let comments = [
+        "btfsynth surface".to_string(),
+        format!("analysis {}", analysis.display()),
+        format!("mesh {}", mesh.display()),
+        format!("texel {}", level.texel),
+        format!("params {params}"),
+    ];
     let component = |c: usize| level.frames.s.iter().map(|s| s[c]).collect::<Vec<f32>>();
     let (sx, sy, sz) = (component(0), component(1), component(2));
     let texton: Vec<u32> = state.labels.iter().map(|&l| l as u32).collect();
