@@ -6,23 +6,7 @@ mod common;
 use common::{assert_one_line_error, btfsynth};
 
 fn analysis(dir: &std::path::Path) -> std::path::PathBuf {
-    let out = dir.join("analysis");
-    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
-    let r = btfsynth(&[
-        "-q",
-        "analyze",
-        texture,
-        "--crop",
-        "0,0,48,48",
-        "--textons",
-        "32",
-        "--levels",
-        "2",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    out
+    common::analyze_gravel_crop(dir, "analysis")
 }
 
 #[test]

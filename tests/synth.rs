@@ -72,22 +72,7 @@ fn a_tileable_periodic_sample_is_reproduced() {
 #[test]
 fn same_seed_same_bytes_and_other_seeds_differ() {
     let dir = tempfile::tempdir().unwrap();
-    let analysis = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
-    let a = dir.path().join("a");
-    let r = btfsynth(&[
-        "-q",
-        "analyze",
-        analysis,
-        "--crop",
-        "0,0,48,48",
-        "--textons",
-        "32",
-        "--levels",
-        "2",
-        "-o",
-        a.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let a = common::analyze_gravel_crop(dir.path(), "a");
     let run = |name: &str, seed: &str| {
         let out = dir.path().join(name);
         let r = btfsynth(&[

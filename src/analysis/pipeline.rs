@@ -192,7 +192,10 @@ fn downsample_rows(images: &Array2<f32>, (width, height): (usize, usize), tileab
     let rows: Vec<Vec<f32>> = images
         .rows()
         .into_iter()
-        .map(|row| downsample(row.as_slice().unwrap_or(&row.to_vec()), width, height, 3, tileable).0)
+        .map(|row| match row.as_slice() {
+            Some(pixels) => downsample(pixels, width, height, 3, tileable).0,
+            None => downsample(&row.to_vec(), width, height, 3, tileable).0,
+        })
         .collect();
     let cols = rows.first().map_or(0, Vec::len);
     Array2::from_shape_vec((rows.len(), cols), rows.concat()).unwrap_or_else(|_| Array2::zeros((0, 0)))

@@ -48,3 +48,14 @@ pub fn entries(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// Analyses a 48×48 crop of the bundled gravel photograph (32 textons, 2 levels) into
+/// `dir/name`: a small real analysis for synthesis tests.
+pub fn analyze_gravel_crop(dir: &Path, name: &str) -> std::path::PathBuf {
+    let out = dir.join(name);
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let args = ["-q", "analyze", texture, "--crop", "0,0,48,48", "--textons", "32", "--levels", "2", "-o"];
+    let r = btfsynth(&[&args[..], &[out.to_str().unwrap()]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    out
+}
