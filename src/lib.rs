@@ -27,6 +27,7 @@ pub mod eval;
 pub mod fsutil;
 pub mod mesh;
 pub mod progress;
+pub mod render;
 pub mod seeded;
 pub mod synth;
 

@@ -1,0 +1,225 @@
+//! Which sampled directions, and how much of each (Tong §6): the 4 nearest sampled view
+//! directions and the 4 nearest light directions by angle, combined into 4 × 4 images.
+//!
+//! **Weights.** Normalised inverse angular distance, *minus the fifth's*:
+//! wᵢ ∝ 1/dᵢ − 1/d₅. Plain inverse distance jumps when the fifth-nearest direction replaces
+//! the fourth (the newcomer arrives with weight 1/d₄, not 0); subtracting 1/d₅ makes the
+//! leaving and the arriving direction both weigh 0 at the swap, so the blend is continuous
+//! as a light or the camera moves. Barycentric weights would need a triangulation of each
+//! dome; this scheme works on any direction set (UBO, Bonn, a grid, a hand-made manifest).
+//! A query within [`EXACT_RADIANS`] of a sampled direction returns that direction alone.
+
+use glam::Vec3;
+
+/// Directions closer than this (≈ 0.0006°) count as the same: an exact hit.
+pub const EXACT_RADIANS: f32 = 1e-5;
+
+/// Up to four directions (indices into a [`DirectionIndex`]) and their weights, which sum
+/// to 1. Unused entries have weight 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest4 {
+    pub index: [u32; 4],
+    pub weight: [f32; 4],
+}
+
+/// Angular cells of the lookup grid: θ in 5° rows, φ in 10° columns.
+const THETA_CELLS: usize = 18;
+const PHI_CELLS: usize = 36;
+
+/// A set of sampled directions on the upper hemisphere, with a grid of candidate lists so
+/// that a query examines a handful of directions instead of all of them.
+#[derive(Clone, Debug)]
+pub struct DirectionIndex {
+    units: Vec<Vec3>,
+    /// Per (θ, φ) cell, every direction that can be among the 5 nearest of a query in it.
+    cells: Vec<Vec<u32>>,
+}
+
+impl DirectionIndex {
+    /// Indexes `units` (unit vectors, z up; at least one).
+    pub fn new(units: Vec<Vec3>) -> DirectionIndex {
+        assert!(!units.is_empty(), "a direction set has at least one direction");
+        let (dt, dp) = (cell_theta(), cell_phi());
+        let cells = (0..THETA_CELLS * PHI_CELLS)
+            .map(|c| {
+                let (row, col) = (c / PHI_CELLS, c % PHI_CELLS);
+                let theta = (row as f32 + 0.5) * dt;
+                let centre = spherical((row as f32 + 0.5) * dt, (col as f32 + 0.5) * dp);
+                // Any point of the cell lies within `radius` of its centre (a θ step, then
+                // an arc of φ no longer than at the cell's widest row).
+                let radius = 0.5 * dt + 0.5 * dp * (theta + 0.5 * dt).min(std::f32::consts::FRAC_PI_2).sin();
+                let mut angles: Vec<(f32, u32)> =
+                    units.iter().enumerate().map(|(i, u)| (angle(centre, *u), i as u32)).collect();
+                angles.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let fifth = angles[angles.len().min(5) - 1].0;
+                angles.iter().take_while(|(a, _)| *a <= fifth + 2.0 * radius + 1e-4).map(|&(_, i)| i).collect()
+            })
+            .collect();
+        DirectionIndex { units, cells }
+    }
+
+    /// The indexed directions.
+    pub fn units(&self) -> &[Vec3] {
+        &self.units
+    }
+
+    /// Number of directions.
+    pub fn len(&self) -> usize {
+        self.units.len()
+    }
+
+    /// True if empty (never, by construction).
+    pub fn is_empty(&self) -> bool {
+        self.units.is_empty()
+    }
+
+    /// The 4 nearest directions to `query` (a unit vector; below the horizon it is taken at
+    /// the horizon) and their weights.
+    pub fn nearest4(&self, query: Vec3) -> Nearest4 {
+        let query = above_horizon(query);
+        let mut best = [(f32::INFINITY, 0u32); 5];
+        for &i in &self.cells[self.cell_of(query)] {
+            let d = angle(query, self.units[i as usize]);
+            if d < best[4].0 {
+                let mut k = 4;
+                while k > 0 && best[k - 1].0 > d {
+                    best[k] = best[k - 1];
+                    k -= 1;
+                }
+                best[k] = (d, i);
+            }
+        }
+        weights(&best)
+    }
+
+    fn cell_of(&self, q: Vec3) -> usize {
+        let theta = q.z.clamp(-1.0, 1.0).acos();
+        let phi = q.y.atan2(q.x).rem_euclid(std::f32::consts::TAU);
+        let row = ((theta / cell_theta()) as usize).min(THETA_CELLS - 1);
+        let col = ((phi / cell_phi()) as usize).min(PHI_CELLS - 1);
+        row * PHI_CELLS + col
+    }
+}
+
+/// Weights from the (up to) five nearest (angle, index) pairs, sorted by angle; missing
+/// entries have infinite angle.
+fn weights(best: &[(f32, u32); 5]) -> Nearest4 {
+    let index = [best[0].1, best[1].1, best[2].1, best[3].1];
+    if best[0].0 <= EXACT_RADIANS {
+        return Nearest4 { index, weight: [1.0, 0.0, 0.0, 0.0] };
+    }
+    let floor = if best[4].0.is_finite() { 1.0 / best[4].0 } else { 0.0 };
+    let mut weight = [0.0; 4];
+    for k in 0..4 {
+        if best[k].0.is_finite() {
+            weight[k] = (1.0 / best[k].0 - floor).max(0.0);
+        }
+    }
+    let sum: f32 = weight.iter().sum();
+    if sum > 0.0 {
+        weight.iter_mut().for_each(|w| *w /= sum);
+    } else {
+        // Five equidistant directions: share equally among the four kept.
+        let kept = best[..4].iter().filter(|b| b.0.is_finite()).count() as f32;
+        for k in 0..4 {
+            weight[k] = if best[k].0.is_finite() { 1.0 / kept } else { 0.0 };
+        }
+    }
+    Nearest4 { index, weight }
+}
+
+/// The angle between unit vectors, accurate near 0 and π (unlike `acos` of the dot).
+pub fn angle(a: Vec3, b: Vec3) -> f32 {
+    2.0 * ((a - b).length() * 0.5).clamp(0.0, 1.0).asin()
+}
+
+fn above_horizon(q: Vec3) -> Vec3 {
+    if q.z >= 0.0 {
+        return q;
+    }
+    let flat = Vec3::new(q.x, q.y, 0.0);
+    if flat.length_squared() > 1e-12 {
+        flat.normalize()
+    } else {
+        Vec3::X
+    }
+}
+
+fn spherical(theta: f32, phi: f32) -> Vec3 {
+    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+fn cell_theta() -> f32 {
+    std::f32::consts::FRAC_PI_2 / THETA_CELLS as f32
+}
+
+fn cell_phi() -> f32 {
+    std::f32::consts::TAU / PHI_CELLS as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::DirectionSet;
+
+    fn dome() -> DirectionIndex {
+        let dirs = DirectionSet::Ubo81.directions();
+        DirectionIndex::new(dirs.iter().map(|d| d.unit()).collect())
+    }
+
+    /// Brute force over all directions, for reference.
+    fn brute(index: &DirectionIndex, q: Vec3) -> Nearest4 {
+        let mut all: Vec<(f32, u32)> =
+            index.units().iter().enumerate().map(|(i, u)| (angle(q, *u), i as u32)).collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut best = [(f32::INFINITY, 0); 5];
+        for (k, b) in all.iter().take(5).enumerate() {
+            best[k] = *b;
+        }
+        weights(&best)
+    }
+
+    #[test]
+    fn grid_lookup_equals_brute_force() {
+        let index = dome();
+        for k in 0..2000 {
+            let theta = crate::seeded::unit(3, k, 0, 0) * std::f32::consts::FRAC_PI_2;
+            let phi = crate::seeded::unit(3, k, 1, 0) * std::f32::consts::TAU;
+            let q = spherical(theta, phi);
+            let (a, b) = (index.nearest4(q), brute(&index, q));
+            for j in 0..4 {
+                let wa: f32 = (0..4).filter(|&m| a.index[m] == b.index[j]).map(|m| a.weight[m]).sum();
+                assert!((wa - b.weight[j]).abs() < 1e-5, "query {q}: {a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn exact_hit_returns_that_direction_alone() {
+        let index = dome();
+        for (i, u) in index.units().iter().enumerate() {
+            let n = index.nearest4(*u);
+            assert_eq!((n.index[0], n.weight), (i as u32, [1.0, 0.0, 0.0, 0.0]));
+        }
+    }
+
+    #[test]
+    fn weights_sum_to_one_and_are_non_negative() {
+        let index = dome();
+        for k in 0..500 {
+            let q = spherical(k as f32 * 0.003, k as f32 * 0.7);
+            let n = index.nearest4(q);
+            assert!((n.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+            assert!(n.weight.iter().all(|&w| w >= 0.0));
+        }
+    }
+
+    #[test]
+    fn small_sets_and_below_horizon_queries() {
+        let one = DirectionIndex::new(vec![Vec3::Z]);
+        assert_eq!(one.nearest4(Vec3::new(0.0, 0.6, -0.8)).weight, [1.0, 0.0, 0.0, 0.0]);
+        let two = DirectionIndex::new(vec![Vec3::Z, Vec3::X]);
+        let n = two.nearest4(spherical(0.3, 0.0));
+        assert!((n.weight[0] + n.weight[1] - 1.0).abs() < 1e-6 && n.weight[0] > n.weight[1]);
+    }
+}

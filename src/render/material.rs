@@ -1,0 +1,293 @@
+//! The sample BTF as a material: its images, its view and light domes, and the one
+//! shading core that both renderers use: which 16 images a (view, light) pair blends
+//! ([`Material::blend`], run on the CPU for the GPU too) and a bilinear lookup in them.
+
+use super::blend::{DirectionIndex, Nearest4};
+use crate::analysis::{npy, store};
+use crate::btf::{directions, Direction, DirectionPair};
+use crate::{Error, Result};
+use glam::Vec3;
+use half::f16;
+use std::path::Path;
+
+/// Images a (view, light) query blends, with weights. Weights sum to 1 when the point is
+/// lit (times n·l for a one-light sample, see [`Material::blend`]) and to 0 when not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blend16 {
+    pub image: [u32; 16],
+    pub weight: [f32; 16],
+}
+
+impl Blend16 {
+    /// No light: every weight 0.
+    pub const DARK: Blend16 = Blend16 { image: [0; 16], weight: [0.0; 16] };
+}
+
+/// A BTF sample ready for shading: f32 RGB images, direction indices and the table from
+/// (view, light) to image.
+pub struct Material {
+    width: usize,
+    height: usize,
+    /// `[n][height][width][3]` linear RGB.
+    pixels: Vec<f32>,
+    pairs: Vec<DirectionPair>,
+    views: DirectionIndex,
+    lights: DirectionIndex,
+    /// `image_of[view * lights + light]`: the image taken under that pair, if any.
+    image_of: Vec<Option<u32>>,
+    /// Lookups wrap around the edges (the sample tiles) rather than clamp.
+    pub tileable: bool,
+}
+
+impl Material {
+    /// A material from images (`[n][height][width][3]` linear RGB) and their direction pairs.
+    pub fn new(width: usize, height: usize, pixels: Vec<f32>, pairs: Vec<DirectionPair>) -> Result<Material> {
+        if pairs.is_empty() || width == 0 || height == 0 || pixels.len() != pairs.len() * width * height * 3 {
+            return Err(Error::invalid(format!(
+                "material: {} values for {} images of {width}x{height}",
+                pixels.len(),
+                pairs.len()
+            )));
+        }
+        let views = directions::distinct(pairs.iter().map(|p| p.view));
+        let lights = directions::distinct(pairs.iter().map(|p| p.light));
+        let mut image_of = vec![None; views.len() * lights.len()];
+        for (i, pair) in pairs.iter().enumerate() {
+            let v = views.iter().position(|d| d.same_as(&pair.view)).expect("distinct() kept it");
+            let l = lights.iter().position(|d| d.same_as(&pair.light)).expect("distinct() kept it");
+            image_of[v * lights.len() + l].get_or_insert(i as u32);
+        }
+        let index = |dirs: &[Direction]| DirectionIndex::new(dirs.iter().map(Direction::unit).collect());
+        Ok(Material {
+            width,
+            height,
+            pixels,
+            views: index(&views),
+            lights: index(&lights),
+            pairs,
+            image_of,
+            tileable: false,
+        })
+    }
+
+    /// The material of an analysis directory (`images.npy`, `directions.npy`, and whether
+    /// it was analysed as tileable).
+    pub fn open(analysis_dir: &Path) -> Result<Material> {
+        let manifest = store::read_manifest(analysis_dir)?;
+        let images: npy::NpyArray<f16> = npy::read(&analysis_dir.join("images.npy"))?;
+        let dirs: npy::NpyArray<f32> = npy::read(&analysis_dir.join("directions.npy"))?;
+        let [n, h, w, 3] = images.shape[..] else {
+            return Err(Error::format(analysis_dir.join("images.npy"), "expected shape [n, h, w, 3]"));
+        };
+        if dirs.shape != [n, 4] {
+            return Err(Error::format(
+                analysis_dir.join("directions.npy"),
+                format!("shape {:?} does not match {n} images", dirs.shape),
+            ));
+        }
+        let pairs = dirs
+            .data
+            .chunks_exact(4)
+            .map(|d| {
+                Ok(DirectionPair { light: Direction::new(d[0], d[1])?, view: Direction::new(d[2], d[3])? })
+            })
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| Error::format(analysis_dir.join("directions.npy"), e.to_string()))?;
+        let pixels = images.data.iter().map(|v| v.to_f32()).collect();
+        let mut material = Material::new(w, h, pixels, pairs)?;
+        material.tileable = manifest.params.tileable;
+        Ok(material)
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Number of images.
+    pub fn len(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// True if there are no images (never, by construction).
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+
+    /// The (light, view) pair of every image.
+    pub fn pairs(&self) -> &[DirectionPair] {
+        &self.pairs
+    }
+
+    /// All pixels, `[n][height][width][3]` linear RGB.
+    pub fn pixels(&self) -> &[f32] {
+        &self.pixels
+    }
+
+    /// The images to blend for a view and a light given in the local frame (x along s,
+    /// y along t, z along n; unit vectors). A light at or below the horizon lights nothing.
+    /// A sample with a single light direction is a texture photographed under that light,
+    /// so it is scaled by n·l, the cosine a flat texture would receive.
+    pub fn blend(&self, view: Vec3, light: Vec3) -> Blend16 {
+        if light.z <= 0.0 {
+            return Blend16::DARK;
+        }
+        let (nv, nl) = (self.views.nearest4(view), self.lights.nearest4(light));
+        let mut out = Blend16::DARK;
+        let (mut k, mut present) = (0, 0.0);
+        for a in 0..4 {
+            for b in 0..4 {
+                let w = nv.weight[a] * nl.weight[b];
+                if w <= 0.0 {
+                    continue;
+                }
+                if let Some(image) = self.image_of[nv.index[a] as usize * self.lights.len() + nl.index[b] as usize] {
+                    out.image[k] = image;
+                    out.weight[k] = w;
+                    present += w;
+                    k += 1;
+                }
+            }
+        }
+        if present <= 0.0 {
+            out = self.nearest_pair(&nv, &nl);
+            present = 1.0;
+        }
+        let cosine = if self.lights.len() == 1 { light.z } else { 1.0 };
+        out.weight.iter_mut().for_each(|w| *w *= cosine / present);
+        out
+    }
+
+    /// For a stack that is not a full view × light product: the image whose pair is
+    /// nearest the best view and light (sum of angles).
+    fn nearest_pair(&self, nv: &Nearest4, nl: &Nearest4) -> Blend16 {
+        let (v, l) = (self.views.units()[nv.index[0] as usize], self.lights.units()[nl.index[0] as usize]);
+        let cost = |p: &DirectionPair| super::blend::angle(p.view.unit(), v) + super::blend::angle(p.light.unit(), l);
+        let best = (0..self.pairs.len()).min_by(|&a, &b| cost(&self.pairs[a]).total_cmp(&cost(&self.pairs[b])));
+        let mut out = Blend16::DARK;
+        out.image[0] = best.unwrap_or(0) as u32;
+        out.weight[0] = 1.0;
+        out
+    }
+
+    /// Bilinear RGB of image `image` at sample coordinate (u, v) in texels (integers are
+    /// texel centres; u along columns, v along rows), wrapping or clamping at the edges.
+    pub fn texel(&self, image: u32, u: f32, v: f32) -> Vec3 {
+        let (x0, y0) = (u.floor(), v.floor());
+        let (fx, fy) = (u - x0, v - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let base = image as usize * self.width * self.height;
+        let at = |x: i64, y: i64| {
+            let (x, y) = (self.edge(x, self.width), self.edge(y, self.height));
+            let o = (base + y * self.width + x) * 3;
+            Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
+        };
+        if fx == 0.0 && fy == 0.0 {
+            return at(x0, y0);
+        }
+        let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
+        let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
+        top.lerp(bottom, fy)
+    }
+
+    fn edge(&self, i: i64, n: usize) -> usize {
+        if self.tileable {
+            i.rem_euclid(n as i64) as usize
+        } else {
+            i.clamp(0, n as i64 - 1) as usize
+        }
+    }
+
+    /// The colour of a blend at (u, v).
+    pub fn shade(&self, blend: &Blend16, u: f32, v: f32) -> Vec3 {
+        let mut c = Vec3::ZERO;
+        for k in 0..16 {
+            if blend.weight[k] != 0.0 {
+                c += blend.weight[k] * self.texel(blend.image[k], u, v);
+            }
+        }
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::DirectionSet;
+
+    /// A 2×2 ubo81 material whose image i is the constant i + 1 (in every channel).
+    fn indexed_material() -> Material {
+        let pairs = DirectionSet::Ubo81.pairs();
+        let pixels = (0..pairs.len()).flat_map(|i| std::iter::repeat_n((i + 1) as f32, 12)).collect();
+        Material::new(2, 2, pixels, pairs).unwrap()
+    }
+
+    #[test]
+    fn a_sampled_pair_returns_its_image_exactly() {
+        let m = indexed_material();
+        for (i, p) in m.pairs().iter().enumerate().step_by(37) {
+            let b = m.blend(p.view.unit(), p.light.unit());
+            let c = m.shade(&b, 0.5, 0.5);
+            assert_eq!(c, Vec3::splat((i + 1) as f32), "pair {p}");
+        }
+    }
+
+    #[test]
+    fn weights_sum_to_one_where_lit_and_zero_where_not() {
+        let m = indexed_material();
+        for k in 0..300 {
+            let t = k as f32 * 0.004;
+            let view = Vec3::new(t.sin() * 0.3, 0.2, 1.0).normalize();
+            let light = Vec3::new((3.0 * t).cos(), (3.0 * t).sin(), 0.2 + t).normalize();
+            let b = m.blend(view, light);
+            assert!((b.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        }
+        assert_eq!(m.blend(Vec3::Z, Vec3::new(1.0, 0.0, -0.1).normalize()), Blend16::DARK);
+    }
+
+    #[test]
+    fn the_blend_moves_continuously_with_the_light() {
+        // Each image shows the index of its light: any jump in the light weights shows.
+        let pairs = DirectionSet::Ubo81.pairs();
+        let lights = directions::distinct(pairs.iter().map(|p| p.light));
+        let value = |p: &DirectionPair| lights.iter().position(|l| l.same_as(&p.light)).unwrap() as f32;
+        let pixels = pairs.iter().flat_map(|p| std::iter::repeat_n(value(p), 12)).collect();
+        let m = Material::new(2, 2, pixels, pairs).unwrap();
+        let view = Vec3::new(0.2, -0.1, 1.0).normalize();
+        let worst_step = |steps: usize| {
+            let colour = |k: usize| {
+                let a = k as f32 / steps as f32 * std::f32::consts::TAU;
+                let light = Vec3::new(a.cos() * 0.8, a.sin() * 0.8, 0.6).normalize();
+                m.shade(&m.blend(view, light), 0.0, 0.0).x
+            };
+            (1..=steps).map(|k| (colour(k) - colour(k - 1)).abs()).fold(0.0, f32::max)
+        };
+        // Continuous: halving the step halves the largest change. A jump would not shrink.
+        let (coarse, fine) = (worst_step(10_000), worst_step(20_000));
+        assert!(fine < 0.6 * coarse, "largest step {coarse} at 10k steps, {fine} at 20k");
+    }
+
+    #[test]
+    fn one_image_material_is_its_texture_times_n_dot_l() {
+        let pair = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
+        let m = Material::new(1, 1, vec![0.5, 0.25, 1.0], vec![pair]).unwrap();
+        let light = Vec3::new(0.6, 0.0, 0.8);
+        let c = m.shade(&m.blend(Vec3::new(0.0, 0.3, 0.9).normalize(), light), 0.0, 0.0);
+        assert!((c - Vec3::new(0.4, 0.2, 0.8)).length() < 1e-6);
+    }
+
+    #[test]
+    fn bilinear_lookup_wraps_or_clamps() {
+        let pair = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
+        let pixels = vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+        let mut m = Material::new(2, 1, pixels, vec![pair]).unwrap();
+        assert_eq!(m.texel(0, 0.25, 0.0).x, 0.25);
+        assert_eq!(m.texel(0, 1.5, 0.0).x, 1.0);
+        m.tileable = true;
+        assert_eq!(m.texel(0, 1.5, 0.0).x, 0.5);
+        assert_eq!(m.texel(0, -1.0, 0.0).x, 1.0);
+    }
+}

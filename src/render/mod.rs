@@ -1,0 +1,12 @@
+//! Rendering a surface BTF (Tong et al. 2002 §6): per surface point, the view and light
+//! directions in its (s, t, n) frame select 4 × 4 sample images, blended at its sample
+//! coordinate.
+//!
+//! [`material`] holds the shading core that the CPU ray tracer and the wgpu renderer share:
+//! the 16 images and weights of a (view, light) query ([`material::Material::blend`], with
+//! the weighting scheme explained in [`blend`]) and the bilinear lookup.
+
+pub mod blend;
+pub mod material;
+
+pub use material::{Blend16, Material};
