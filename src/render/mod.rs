@@ -10,3 +10,11 @@ pub mod blend;
 pub mod material;
 
 pub use material::{Blend16, Material};
+pub mod camera;
+pub mod cpu;
+pub mod output;
+pub mod scene;
+
+pub use camera::{Camera, Orbit, Projection, Shot, ShotPlan};
+pub use output::{Frame, FrameFormat, SequenceWriter};
+pub use scene::{Mode, Scene};

@@ -34,7 +34,7 @@ pub struct Hit {
 
 /// The BVH's slab test computes 0 × ∞ = NaN for a direction component that is exactly zero
 /// (every ray along the normal), and NaN reads as a miss: nudge such components.
-fn robust(direction: Vec3) -> Vec3A {
+pub(crate) fn robust(direction: Vec3) -> Vec3A {
     let nudge = |c: f32| {
         if c.abs() < 1e-6 {
             1e-6f32.copysign(c)

@@ -1,0 +1,144 @@
+//! A surface texton map ready to render: the mesh, its frames, per-vertex sample
+//! coordinates, and the per-vertex blends of a shot, which both renderers use.
+
+use super::camera::Shot;
+use super::material::{Blend16, Material};
+use crate::mesh::frames::Frames;
+use crate::mesh::Mesh;
+use crate::synth::surface_map::{read_surface_ply, SurfaceMap};
+use crate::{Error, Result};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// How a point between vertices is shaded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Mode {
+    /// Tong §6: a colour per vertex, interpolated across each triangle.
+    Vertex,
+    /// Per pixel, each corner of the triangle predicts a sample coordinate (its own plus
+    /// the pixel's offset in its tangent frame, in texels); the three lookups are blended
+    /// by barycentric weight. Shows sample-resolution detail between vertices.
+    #[default]
+    Pixel,
+}
+
+/// What the renderers draw.
+pub struct Scene {
+    /// The mesh, with vertex normals.
+    pub mesh: Mesh,
+    pub frames: Frames,
+    /// Per vertex, the sample coordinate (u along columns, v along rows) in texels.
+    pub uv: Vec<Vec2>,
+    /// Per vertex, the texton label (for false-colour display).
+    pub labels: Vec<u16>,
+    /// One sample texel in model units.
+    pub texel: f32,
+}
+
+impl Scene {
+    pub fn from_surface_map(map: SurfaceMap) -> Scene {
+        let uv = map.state.uv.iter().map(|&[u, v]| Vec2::new(u as f32, v as f32)).collect();
+        Scene { mesh: map.mesh, frames: map.frames, uv, labels: map.state.labels, texel: map.texel }
+    }
+
+    /// The vertex normals.
+    pub fn normals(&self) -> &[Vec3] {
+        &self.frames.n
+    }
+
+    /// The blend of every vertex for `shot`: its view and light in the vertex's frame.
+    pub fn vertex_blends(&self, material: &Material, shot: &Shot) -> Vec<Blend16> {
+        let positions = self.mesh.positions();
+        (0..positions.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|v| {
+                let view = shot.camera.towards_eye(positions[v]);
+                material.blend(self.to_local(v, view), self.to_local(v, shot.light))
+            })
+            .collect()
+    }
+
+    /// A world direction in vertex `v`'s (s, t, n) frame.
+    pub fn to_local(&self, v: usize, d: Vec3) -> Vec3 {
+        let f = &self.frames;
+        Vec3::new(d.dot(f.s[v]), d.dot(f.t[v]), d.dot(f.n[v]))
+    }
+
+    /// The sample coordinate that corner vertex `v` predicts for surface point `p`: its own
+    /// coordinate plus the offset to `p` in its tangent frame (rows run down t).
+    pub fn predict_uv(&self, v: usize, p: Vec3) -> Vec2 {
+        let d = p - self.mesh.positions()[v];
+        self.uv[v] + Vec2::new(d.dot(self.frames.s[v]), -d.dot(self.frames.t[v])) / self.texel
+    }
+
+    /// The colour of point `p` with barycentric weights `bary` in triangle `tri`, before
+    /// shadowing (see [`Mode`]).
+    pub fn shade_point(
+        &self,
+        material: &Material,
+        blends: &[Blend16],
+        mode: Mode,
+        (tri, bary, p): (usize, Vec3, Vec3),
+    ) -> Vec3 {
+        let corners = self.mesh.triangles()[tri];
+        let mut c = Vec3::ZERO;
+        for k in 0..3 {
+            let v = corners[k] as usize;
+            let q = match mode {
+                Mode::Vertex => self.uv[v],
+                Mode::Pixel => self.predict_uv(v, p),
+            };
+            c += bary[k] * material.shade(&blends[v], q.x, q.y);
+        }
+        c
+    }
+
+    /// Per-vertex colours (Tong §6's vertex mode) under `blends`; `lit[v]` false makes a
+    /// vertex black (in shadow).
+    pub fn vertex_colours(&self, material: &Material, blends: &[Blend16], lit: Option<&[bool]>) -> Vec<Vec3> {
+        (0..self.uv.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|v| {
+                if lit.is_some_and(|l| !l[v]) {
+                    return Vec3::ZERO;
+                }
+                material.shade(&blends[v], self.uv[v].x, self.uv[v].y)
+            })
+            .collect()
+    }
+}
+
+/// Opens a surface map and finds its analysis: `analysis` if given, else the header's
+/// `analysis` path, tried as written (relative to the working directory) and then relative
+/// to the surface map's directory.
+pub fn open_surface(path: &Path, analysis: Option<&Path>) -> Result<(Scene, PathBuf)> {
+    let map = read_surface_ply(path)?;
+    let dir = match analysis {
+        Some(a) => a.to_path_buf(),
+        None => {
+            let written = map
+                .comments
+                .iter()
+                .find_map(|c| c.strip_prefix("analysis "))
+                .map(PathBuf::from)
+                .ok_or_else(|| Error::format(path, "no 'analysis' comment: pass --analysis DIR"))?;
+            let beside = path.parent().map(|p| p.join(&written));
+            match beside {
+                Some(b) if !written.exists() && b.exists() => b,
+                _ => written,
+            }
+        }
+    };
+    if !dir.join(crate::analysis::store::MANIFEST).is_file() {
+        return Err(Error::invalid(format!(
+            "{}: its analysis {} is missing (no {}); pass --analysis DIR",
+            path.display(),
+            dir.display(),
+            crate::analysis::store::MANIFEST
+        )));
+    }
+    Ok((Scene::from_surface_map(map), dir))
+}
