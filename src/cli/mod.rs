@@ -7,6 +7,8 @@ mod gen;
 mod info;
 mod progress;
 mod remesh;
+mod render;
+mod shots;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -45,6 +47,8 @@ enum Command {
     Eval(eval::EvalArgs),
     /// Remesh a triangle mesh to near-uniform edge length (OBJ/OFF/PLY in, binary PLY out).
     Remesh(remesh::RemeshArgs),
+    /// Render a surface map on the CPU: ray-traced frames with shadows (EXR or PNG) and a contact sheet.
+    Render(render::RenderArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -54,7 +58,10 @@ enum Command {
 /// Runs the CLI; every error becomes one line on stderr and exit code 1.
 pub fn main() -> ExitCode {
     install_panic_hook();
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(e),
+    };
     init_logging(cli.verbose);
     if let Some(threads) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global() {
@@ -69,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Synth(args) => synth::run(args, &bars),
         Command::Eval(args) => eval::run(args, &bars),
         Command::Remesh(args) => remesh::run(args, &bars),
+        Command::Render(args) => render::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };
@@ -79,6 +87,21 @@ pub fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Help and version go to stdout as clap prints them; a usage error becomes one line and
+/// exit code 2 (other errors exit 1).
+fn usage_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+        let _ = e.print();
+        return if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand { ExitCode::FAILURE } else { ExitCode::SUCCESS };
+    }
+    let text = e.render().to_string();
+    let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+    let first = first.strip_prefix("error: ").unwrap_or(first);
+    eprintln!("error: {first} (see --help)");
+    ExitCode::from(2)
 }
 
 /// The error and its causes on one line, without repeating a cause a message already quotes.

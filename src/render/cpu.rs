@@ -143,3 +143,36 @@ pub fn vertex_lit(scene: &Scene, tracer: &Tracer, light: Vec3) -> Vec<bool> {
         .map(|v| normals[v].dot(light) > 0.0 && tracer.lit(positions[v], normals[v], light))
         .collect()
 }
+
+/// Renders every shot of `plan` into `writer`; with `compare`, each frame is put beside the
+/// sample on a flat quad ([`Scene::sample_quad`]) seen from the same direction under the
+/// same light. Returns the mean seconds per frame (rendering only).
+pub fn render_sequence(
+    (scene, material): (&Scene, &Material),
+    plan: &super::ShotPlan,
+    options: RenderOptions,
+    compare: bool,
+    writer: &mut super::SequenceWriter,
+    progress: &dyn crate::progress::Progress,
+) -> crate::Result<f64> {
+    let tracer = Tracer::new(&scene.mesh);
+    let quad = if compare { Some(Scene::sample_quad(material)?) } else { None };
+    let quad_tracer = quad.as_ref().map(|q| Tracer::new(&q.mesh));
+    let shots = plan.shots(scene.mesh.bounds());
+    let quad_shots = quad.as_ref().map(|q| super::ShotPlan { orbit: plan.orbit, ..*plan }.shots(q.mesh.bounds()));
+    progress.start("rendering", shots.len() as u64);
+    let mut seconds = 0.0;
+    for (i, shot) in shots.iter().enumerate() {
+        let started = std::time::Instant::now();
+        let mut frame = render(scene, material, &tracer, shot, options);
+        if let (Some(q), Some(t), Some(qs)) = (&quad, &quad_tracer, &quad_shots) {
+            let quad_options = RenderOptions { mode: Mode::Pixel, ..options };
+            frame = frame.beside(&render(q, material, t, &qs[i], quad_options));
+        }
+        seconds += started.elapsed().as_secs_f64();
+        writer.push(&frame)?;
+        progress.advance(1);
+    }
+    progress.finish();
+    Ok(seconds / shots.len().max(1) as f64)
+}

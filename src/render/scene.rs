@@ -111,6 +111,22 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// The sample itself on a flat quad in the world's XZ plane (normal +Y, s = +X, rows
+    /// running towards +Z), one model unit per texel, its map the identity: what `--compare`
+    /// puts beside each frame.
+    pub fn sample_quad(material: &Material) -> Result<Scene> {
+        let (w, h) = (material.width() as f32, material.height() as f32);
+        let corners = [(-0.5, -0.5), (w - 0.5, -0.5), (w - 0.5, h - 0.5), (-0.5, h - 0.5)];
+        let positions = corners.iter().map(|&(x, z)| Vec3::new(x, 0.0, z)).collect();
+        let mesh = Mesh::new(positions, vec![[0, 2, 1], [0, 3, 2]])?.with_normals();
+        let n = mesh.vertex_count();
+        let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
+        let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
+        Ok(Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0 })
+    }
+}
+
 /// Opens a surface map and finds its analysis: `analysis` if given, else the header's
 /// `analysis` path, tried as written (relative to the working directory) and then relative
 /// to the surface map's directory.

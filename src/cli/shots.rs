@@ -1,0 +1,99 @@
+//! Options that `render` and `view` share: which surface, which shots, which shading.
+
+use crate::render::{FrameFormat, Mode, Orbit, ShotPlan};
+use anyhow::{bail, Result};
+use std::path::PathBuf;
+
+/// The surface map, the camera and light, and the shading mode.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ShotArgs {
+    /// The surface map to render (a PLY from `btfsynth synth`).
+    pub surface: PathBuf,
+    /// The analysis directory [default: the one named in the surface map's header, as
+    /// written or relative to the surface map].
+    #[arg(long, value_name = "DIR")]
+    pub analysis: Option<PathBuf>,
+    /// Image size in pixels.
+    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Number of frames. With more than one and no --view-orbit, the light orbits.
+    #[arg(long, default_value_t = 1)]
+    pub frames: usize,
+    /// The light circles the model at its --light elevation, one turn over the frames.
+    #[arg(long)]
+    pub light_orbit: bool,
+    /// The camera circles the model at its --view elevation, one turn over the frames.
+    #[arg(long)]
+    pub view_orbit: bool,
+    /// Light direction θ,φ in degrees: θ from the world's +Y (up), φ about Y from +Z
+    /// towards +X (at frame 0 of an orbit).
+    #[arg(long, value_name = "θ,φ", default_value = "45,45", value_parser = parse_angles)]
+    pub light: (f32, f32),
+    /// Camera direction θ,φ in degrees from the model's centre (same convention as --light).
+    #[arg(long, value_name = "θ,φ", default_value = "70,0", value_parser = parse_angles)]
+    pub view: (f32, f32),
+    /// Parallel projection instead of a 30° perspective camera.
+    #[arg(long)]
+    pub orthographic: bool,
+    /// Shading between vertices.
+    #[arg(long, value_enum, default_value_t = Mode::Pixel)]
+    pub mode: Mode,
+}
+
+/// Where a sequence goes.
+#[derive(clap::Args, Clone, Debug)]
+pub struct OutputArgs {
+    /// Output directory (frames, contact.png).
+    #[arg(short, long, value_name = "DIR")]
+    pub output: Option<PathBuf>,
+    /// Frame file format: exr (linear f32 RGBA) or png (8-bit sRGB).
+    #[arg(long, value_enum, default_value_t = FrameFormat::Exr)]
+    pub format: FrameFormat,
+    /// Replace the output directory if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+impl ShotArgs {
+    /// The shots the options describe.
+    pub fn plan(&self) -> Result<ShotPlan> {
+        if self.frames == 0 {
+            bail!("--frames 0: render at least one frame");
+        }
+        let orbit = match (self.light_orbit, self.view_orbit) {
+            (true, true) => Orbit::Both,
+            (false, true) => Orbit::View,
+            (true, false) => Orbit::Light,
+            (false, false) if self.frames > 1 => Orbit::Light,
+            (false, false) => Orbit::None,
+        };
+        Ok(ShotPlan {
+            size: self.size,
+            frames: self.frames,
+            light: self.light,
+            view: self.view,
+            orbit,
+            orthographic: self.orthographic,
+        })
+    }
+}
+
+/// `WxH`, both positive (at most 16384).
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("'{s}': expected WxH with positive integers up to 16384, e.g. 1024x768");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    match (w.trim().parse::<u32>(), h.trim().parse::<u32>()) {
+        (Ok(w), Ok(h)) if (1..=16384).contains(&w) && (1..=16384).contains(&h) => Ok((w, h)),
+        _ => Err(bad()),
+    }
+}
+
+/// `θ,φ` in degrees, θ in [0, 180].
+pub fn parse_angles(s: &str) -> Result<(f32, f32), String> {
+    let bad = || format!("'{s}': expected θ,φ in degrees, θ from 0 to 180, e.g. 45,30");
+    let (t, p) = s.split_once(',').ok_or_else(bad)?;
+    match (t.trim().parse::<f32>(), p.trim().parse::<f32>()) {
+        (Ok(t), Ok(p)) if (0.0..=180.0).contains(&t) && p.is_finite() => Ok((t, p)),
+        _ => Err(bad()),
+    }
+}
