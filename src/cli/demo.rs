@@ -6,6 +6,9 @@ use crate::analysis::store;
 use crate::btf::gen::{generate, GenParams, MaterialKind};
 use crate::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptions};
 use crate::mesh::field::Orientation;
+use crate::render::cpu::{render_sequence, RenderOptions};
+use crate::render::scene::open_surface;
+use crate::render::{FrameFormat, Material, Orbit, SequenceWriter, ShotPlan};
 use crate::synth::plane::{synthesize_plane, write_plane};
 use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
 use crate::synth::{Preset, Sample, Search, SynthParams};
@@ -37,7 +40,7 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     std::fs::create_dir_all(&args.output).map_err(|e| crate::Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
     let data = data_dir(args.data.clone());
-    eprintln!("[1/5] generating a 64x64 pebbles BTF on a 16-direction dome (256 images)");
+    eprintln!("[1/6] generating a 64x64 pebbles BTF on a 16-direction dome (256 images)");
     let params = GenParams { size: 64, directions: DirectionSet::Grid(16), ..GenParams::default() };
     let stack = generate(MaterialKind::Pebbles, &params, bars)?;
     let source = serde_json::json!({
@@ -47,7 +50,7 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     let reloaded = load(&out("stack"), &LoadOptions::default(), bars)?;
     println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&out("stack"), &reloaded))?);
 
-    eprintln!("[2/5] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
+    eprintln!("[2/6] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
     analyse_and_synthesize(
         &reloaded,
         &out("stack"),
@@ -58,10 +61,10 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     )?;
 
     let texture = data.join("gravel-128.png");
-    eprintln!("[3/5] reading the bundled photograph {} as a one-image BTF", texture.display());
+    eprintln!("[3/6] reading the bundled photograph {} as a one-image BTF", texture.display());
     let photo = load(&texture, &LoadOptions::default(), bars)?;
     println!("{}", serde_json::to_string_pretty(&super::info::stack_json(&texture, &photo))?);
-    eprintln!("[4/5] texture synthesis from the photograph: analysis and a 192x192 plane");
+    eprintln!("[4/6] texture synthesis from the photograph: analysis and a 192x192 plane");
     analyse_and_synthesize(
         &photo,
         &texture,
@@ -71,17 +74,36 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
         bars,
     )?;
     let bunny = data.join("bunny-1k8.obj");
-    eprintln!("[5/5] the pebbles BTF on {}: a 20k-vertex surface texton map", bunny.display());
+    eprintln!("[5/6] the pebbles BTF on {}: a 20k-vertex surface texton map", bunny.display());
     surface_map(&out("analysis"), &bunny, &out("bunny.ply"), bars)?;
+    eprintln!("[6/6] rendering a {DEMO_FRAMES}-frame light orbit, beside the sample under the same light");
+    light_orbit(&out("bunny.ply"), &out("frames"), bars)?;
     eprintln!(
-        "done: look at {}/result.png (the photograph, resynthesized), {}/level0_textons.png \
-         (a BTF's texton map), {} (open it in MeshLab or Blender; per vertex: texton, u, v, \
-         frame) and {}/btf.json",
+        "done: look at {}/contact.png (the bunny under a moving light, beside the sample), \
+         {}/frame_0000.exr (linear; .png beside it), {}/result.png (the photograph, \
+         resynthesized), {}/level0_textons.png (a BTF's texton map), {} (open it in MeshLab \
+         or Blender; per vertex: texton, u, v, frame) and {}/btf.json",
+        out("frames").display(),
+        out("frames").display(),
         out("gravel-plane").display(),
         out("analysis").display(),
         out("bunny.ply").display(),
         out("stack").display()
     );
+    Ok(())
+}
+
+/// Frames of the demo's light orbit.
+const DEMO_FRAMES: usize = 16;
+
+/// Renders the surface map under a light circling at 45° elevation, EXR and PNG frames.
+fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
+    let (scene, analysis) = open_surface(surface, None)?;
+    let material = Material::open(&analysis)?;
+    let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
+    let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
+    render_sequence((&scene, &material), &plan, RenderOptions::default(), true, &mut writer, bars)?;
+    writer.finish()?;
     Ok(())
 }
 

@@ -77,19 +77,27 @@ impl DirectionIndex {
     /// the horizon) and their weights.
     pub fn nearest4(&self, query: Vec3) -> Nearest4 {
         let query = above_horizon(query);
-        let mut best = [(f32::INFINITY, 0u32); 5];
+        // Rank by dot product (the larger, the nearer); take angles of the five kept only.
+        let mut best = [(f32::NEG_INFINITY, 0u32); 5];
         for &i in &self.cells[self.cell_of(query)] {
-            let d = angle(query, self.units[i as usize]);
-            if d < best[4].0 {
+            let d = query.dot(self.units[i as usize]);
+            if d > best[4].0 {
                 let mut k = 4;
-                while k > 0 && best[k - 1].0 > d {
+                while k > 0 && best[k - 1].0 < d {
                     best[k] = best[k - 1];
                     k -= 1;
                 }
                 best[k] = (d, i);
             }
         }
-        weights(&best)
+        let units = &self.units;
+        weights(&best.map(|(d, i)| {
+            if d.is_finite() {
+                (angle(query, units[i as usize]), i)
+            } else {
+                (f32::INFINITY, i)
+            }
+        }))
     }
 
     fn cell_of(&self, q: Vec3) -> usize {

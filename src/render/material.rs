@@ -132,10 +132,27 @@ impl Material {
     /// A sample with a single light direction is a texture photographed under that light,
     /// so it is scaled by n·l, the cosine a flat texture would receive.
     pub fn blend(&self, view: Vec3, light: Vec3) -> Blend16 {
-        if light.z <= 0.0 {
-            return Blend16::DARK;
+        match self.light_weights(light) {
+            Some(nl) => self.combine(&self.view_weights(view), &nl, light.z),
+            None => Blend16::DARK,
         }
-        let (nv, nl) = (self.views.nearest4(view), self.lights.nearest4(light));
+    }
+
+    /// The 4 nearest sampled views of a local view direction, weighted. A camera that does
+    /// not move can keep these per vertex while the light moves ([`Material::combine`]).
+    pub fn view_weights(&self, view: Vec3) -> Nearest4 {
+        self.views.nearest4(view)
+    }
+
+    /// The 4 nearest sampled lights of a local light direction, weighted; `None` at or
+    /// below the horizon.
+    pub fn light_weights(&self, light: Vec3) -> Option<Nearest4> {
+        (light.z > 0.0).then(|| self.lights.nearest4(light))
+    }
+
+    /// The 16 images of a view and a light selection; `cos_light` is the light's n·l,
+    /// which scales a one-light sample (see [`Material::blend`]).
+    pub fn combine(&self, nv: &Nearest4, nl: &Nearest4, cos_light: f32) -> Blend16 {
         let mut out = Blend16::DARK;
         let (mut k, mut present) = (0, 0.0);
         for a in 0..4 {
@@ -153,10 +170,10 @@ impl Material {
             }
         }
         if present <= 0.0 {
-            out = self.nearest_pair(&nv, &nl);
+            out = self.nearest_pair(nv, nl);
             present = 1.0;
         }
-        let cosine = if self.lights.len() == 1 { light.z } else { 1.0 };
+        let cosine = if self.lights.len() == 1 { cos_light.max(0.0) } else { 1.0 };
         out.weight.iter_mut().for_each(|w| *w *= cosine / present);
         out
     }

@@ -2,6 +2,7 @@
 //! coordinates, and the per-vertex blends of a shot, which both renderers use.
 
 use super::camera::Shot;
+use super::blend::Nearest4;
 use super::material::{Blend16, Material};
 use crate::mesh::frames::Frames;
 use crate::mesh::Mesh;
@@ -106,6 +107,36 @@ impl Scene {
                     return Vec3::ZERO;
                 }
                 material.shade(&blends[v], self.uv[v].x, self.uv[v].y)
+            })
+            .collect()
+    }
+
+    /// Per vertex, the weighted nearest sampled views for `camera`: what relighting keeps
+    /// while only the light moves.
+    pub fn vertex_views(&self, material: &Material, camera: &super::Camera) -> Vec<Nearest4> {
+        let positions = self.mesh.positions();
+        (0..positions.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|v| material.view_weights(self.to_local(v, camera.towards_eye(positions[v]))))
+            .collect()
+    }
+
+    /// Per-vertex colours under a new light, the views kept from [`Scene::vertex_views`]:
+    /// the paper's interactive relighting (no shadows).
+    pub fn relight(&self, material: &Material, views: &[Nearest4], light: Vec3) -> Vec<Vec3> {
+        (0..self.uv.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|v| {
+                let local = self.to_local(v, light);
+                match material.light_weights(local) {
+                    Some(nl) => {
+                        let blend = material.combine(&views[v], &nl, local.z);
+                        material.shade(&blend, self.uv[v].x, self.uv[v].y)
+                    }
+                    None => Vec3::ZERO,
+                }
             })
             .collect()
     }
