@@ -19,7 +19,13 @@ fn main() -> btfsynth::Result<()> {
     let frames = 30;
     let plan = ShotPlan { size: (size, size), frames, orbit: Orbit::Light, ..ShotPlan::default() };
     let shots = plan.shots(scene.mesh.bounds());
-    println!("{} vertices, {} images of {}x{}", scene.mesh.vertex_count(), material.len(), material.width(), material.height());
+    println!(
+        "{} vertices, {} images of {}x{}",
+        scene.mesh.vertex_count(),
+        material.len(),
+        material.width(),
+        material.height()
+    );
 
     let time = |name: &str, n: usize, f: &mut dyn FnMut(usize)| {
         let started = Instant::now();
@@ -45,7 +51,13 @@ fn main() -> btfsynth::Result<()> {
         ("frame, vertex mode, shadows", Mode::Vertex, true),
     ] {
         time(&format!("{name} ({size}²)"), 3, &mut |i| {
-            std::hint::black_box(render(&scene, &material, &tracer, &shots[i], RenderOptions { mode, shadows }));
+            std::hint::black_box(render(
+                &scene,
+                &material,
+                &tracer,
+                &shots[i],
+                RenderOptions { mode, shadows },
+            ));
         });
     }
     Ok(())

@@ -81,7 +81,8 @@ fn add_sphere(positions: &mut Vec<Vec3>, triangles: &mut Vec<[u32; 3]>, centre: 
         let theta = std::f32::consts::PI * i as f32 / rings as f32;
         for j in 0..segments {
             let phi = std::f32::consts::TAU * j as f32 / segments as f32;
-            positions.push(centre + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
+            positions
+                .push(centre + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
         }
     }
     positions.push(centre - Vec3::Y * r);
@@ -107,7 +108,8 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
     let scene = Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0 };
-    let white = DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
+    let white =
+        DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
     let material = Material::new(1, 1, vec![1.0; 3], vec![white]).unwrap();
     let tracer = Tracer::new(&scene.mesh);
     // 81 × 81 pixels over x, z in [-20, 20], half a unit apart.
@@ -135,7 +137,13 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
                 assert_eq!(value, 0.0, "({}, {}) lies in the sphere's shadow", p.x, p.z);
                 shadowed += 1;
             } else if miss > radius + 0.3 {
-                assert!((value - light.y).abs() < 1e-4, "({}, {}) is lit: n·l = {}, got {value}", p.x, p.z, light.y);
+                assert!(
+                    (value - light.y).abs() < 1e-4,
+                    "({}, {}) is lit: n·l = {}, got {value}",
+                    p.x,
+                    p.z,
+                    light.y
+                );
                 lit += 1;
             }
         }
@@ -148,7 +156,8 @@ fn surface(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
     let analysis = common::analyze_gravel_crop(dir, "analysis");
     let out = dir.join("bunny.ply");
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
-    let args = ["-q", "synth", analysis.to_str().unwrap(), bunny, "--vertices", "3000", "-o", out.to_str().unwrap()];
+    let args =
+        ["-q", "synth", analysis.to_str().unwrap(), bunny, "--vertices", "3000", "-o", out.to_str().unwrap()];
     let r = btfsynth(&args);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     (analysis, out)

@@ -9,8 +9,10 @@ use anyhow::{Context, Result};
 use std::time::Instant;
 
 #[derive(clap::Args)]
-#[command(after_help = "Examples:\n  btfsynth render bunny.ply -o frames/ --frames 24 --light-orbit --format png\n  \
-btfsynth render bunny.ply -o still/ --size 1024x1024 --light 30,120 --compare")]
+#[command(
+    after_help = "Examples:\n  btfsynth render bunny.ply -o frames/ --frames 24 --light-orbit --format png\n  \
+btfsynth render bunny.ply -o still/ --size 1024x1024 --light 30,120 --compare"
+)]
 pub struct RenderArgs {
     #[command(flatten)]
     shots: ShotArgs,

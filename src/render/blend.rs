@@ -25,6 +25,27 @@ pub struct Nearest4 {
 /// Angular cells of the lookup grid: θ in 5° rows, φ in 10° columns.
 const THETA_CELLS: usize = 18;
 const PHI_CELLS: usize = 36;
+/// cos of each row's upper θ edge, cos(5° · (k + 1)) for k = 0..17: row r holds the
+/// queries with cos θ in (ROW_COS[r], ROW_COS[r − 1]], found without an acos.
+const ROW_COS: [f32; THETA_CELLS - 1] = [
+    0.996_194_7,
+    0.984_807_8,
+    0.965_925_8,
+    0.939_692_6,
+    0.906_307_8,
+    0.866_025_4,
+    0.819_152_1,
+    0.766_044_4,
+    0.707_106_8,
+    0.642_787_6,
+    0.573_576_4,
+    0.5,
+    0.422_618_3,
+    0.342_020_1,
+    0.258_819_1,
+    0.173_648_2,
+    0.087_155_7,
+];
 
 /// A set of sampled directions on the upper hemisphere, with a grid of candidate lists so
 /// that a query examines a handful of directions instead of all of them.
@@ -52,7 +73,11 @@ impl DirectionIndex {
                     units.iter().enumerate().map(|(i, u)| (angle(centre, *u), i as u32)).collect();
                 angles.sort_by(|a, b| a.0.total_cmp(&b.0));
                 let fifth = angles[angles.len().min(5) - 1].0;
-                angles.iter().take_while(|(a, _)| *a <= fifth + 2.0 * radius + 1e-4).map(|&(_, i)| i).collect()
+                angles
+                    .iter()
+                    .take_while(|(a, _)| *a <= fifth + 2.0 * radius + 1e-4)
+                    .map(|&(_, i)| i)
+                    .collect()
             })
             .collect();
         DirectionIndex { units, cells }
@@ -101,9 +126,8 @@ impl DirectionIndex {
     }
 
     fn cell_of(&self, q: Vec3) -> usize {
-        let theta = q.z.clamp(-1.0, 1.0).acos();
+        let row = ROW_COS.partition_point(|&c| q.z < c).min(THETA_CELLS - 1);
         let phi = q.y.atan2(q.x).rem_euclid(std::f32::consts::TAU);
-        let row = ((theta / cell_theta()) as usize).min(THETA_CELLS - 1);
         let col = ((phi / cell_phi()) as usize).min(PHI_CELLS - 1);
         row * PHI_CELLS + col
     }

@@ -49,7 +49,13 @@ pub const FOV_Y_DEG: f32 = 30.0;
 impl Camera {
     /// A camera on the sphere around a bounding ball (`centre`, `radius`), in world direction
     /// `towards_eye` from the centre, framing the whole ball.
-    pub fn framing(centre: Vec3, radius: f32, towards_eye: Vec3, orthographic: bool, size: (u32, u32)) -> Camera {
+    pub fn framing(
+        centre: Vec3,
+        radius: f32,
+        towards_eye: Vec3,
+        orthographic: bool,
+        size: (u32, u32),
+    ) -> Camera {
         let aspect = size.0 as f32 / size.1 as f32;
         let radius = radius.max(1e-6) * 1.05;
         let half = (FOV_Y_DEG * 0.5).to_radians();
@@ -115,9 +121,12 @@ impl Camera {
         let view = glam::camera::rh::view::look_to_mat4(self.eye, forward, up);
         let aspect = self.width as f32 / self.height as f32;
         let proj = match self.projection {
-            Projection::Perspective { fov_y_deg } => {
-                glam::camera::rh::proj::directx::perspective(fov_y_deg.to_radians(), aspect, self.near, self.far)
-            }
+            Projection::Perspective { fov_y_deg } => glam::camera::rh::proj::directx::perspective(
+                fov_y_deg.to_radians(),
+                aspect,
+                self.near,
+                self.far,
+            ),
             Projection::Orthographic { half_height } => {
                 let (w, h) = (half_height * aspect, half_height);
                 glam::camera::rh::proj::directx::orthographic(-w, w, -h, h, self.near, self.far)
@@ -156,7 +165,14 @@ pub struct ShotPlan {
 impl Default for ShotPlan {
     /// 512², one frame, light from (45°, 45°), camera from (70°, 0°), perspective.
     fn default() -> Self {
-        ShotPlan { size: (512, 512), frames: 1, light: (45.0, 45.0), view: (70.0, 0.0), orbit: Orbit::None, orthographic: false }
+        ShotPlan {
+            size: (512, 512),
+            frames: 1,
+            light: (45.0, 45.0),
+            view: (70.0, 0.0),
+            orbit: Orbit::None,
+            orthographic: false,
+        }
     }
 }
 
@@ -191,7 +207,13 @@ mod tests {
     #[test]
     fn rays_and_view_projection_agree() {
         for orthographic in [false, true] {
-            let cam = Camera::framing(Vec3::new(1.0, 2.0, 3.0), 2.0, world_direction(60.0, 30.0), orthographic, (40, 20));
+            let cam = Camera::framing(
+                Vec3::new(1.0, 2.0, 3.0),
+                2.0,
+                world_direction(60.0, 30.0),
+                orthographic,
+                (40, 20),
+            );
             let vp = cam.view_proj();
             for (x, y) in [(0.5, 0.5), (20.0, 10.0), (39.5, 3.25)] {
                 let (o, d) = cam.ray(x, y);

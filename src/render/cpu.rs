@@ -61,7 +61,12 @@ impl Tracer {
         let position = origin + direction * hit.t;
         let t = &self.triangles[triangle];
         let (a, b, c) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
-        Some(Hit { triangle, position, bary: barycentric(position, a, b, c), normal: (b - a).cross(c - a).normalize_or_zero() })
+        Some(Hit {
+            triangle,
+            position,
+            bary: barycentric(position, a, b, c),
+            normal: (b - a).cross(c - a).normalize_or_zero(),
+        })
     }
 
     /// True if nothing lies between `position` (on a surface with unit normal `normal`,
@@ -104,7 +109,13 @@ impl Default for RenderOptions {
 
 /// Renders one shot. Points facing away from the camera are black; points facing away
 /// from the light or in shadow get no light (there is no ambient term).
-pub fn render(scene: &Scene, material: &Material, tracer: &Tracer, shot: &Shot, options: RenderOptions) -> Frame {
+pub fn render(
+    scene: &Scene,
+    material: &Material,
+    tracer: &Tracer,
+    shot: &Shot,
+    options: RenderOptions,
+) -> Frame {
     let blends = scene.vertex_blends(material, shot);
     let vertex_colours = (options.mode == Mode::Vertex).then(|| {
         let lit = options.shadows.then(|| vertex_lit(scene, tracer, shot.light));
@@ -159,7 +170,8 @@ pub fn render_sequence(
     let quad = if compare { Some(Scene::sample_quad(material)?) } else { None };
     let quad_tracer = quad.as_ref().map(|q| Tracer::new(&q.mesh));
     let shots = plan.shots(scene.mesh.bounds());
-    let quad_shots = quad.as_ref().map(|q| super::ShotPlan { orbit: plan.orbit, ..*plan }.shots(q.mesh.bounds()));
+    let quad_shots =
+        quad.as_ref().map(|q| super::ShotPlan { orbit: plan.orbit, ..*plan }.shots(q.mesh.bounds()));
     progress.start("rendering", shots.len() as u64);
     let mut seconds = 0.0;
     for (i, shot) in shots.iter().enumerate() {

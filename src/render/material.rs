@@ -161,7 +161,9 @@ impl Material {
                 if w <= 0.0 {
                     continue;
                 }
-                if let Some(image) = self.image_of[nv.index[a] as usize * self.lights.len() + nl.index[b] as usize] {
+                if let Some(image) =
+                    self.image_of[nv.index[a] as usize * self.lights.len() + nl.index[b] as usize]
+                {
                     out.image[k] = image;
                     out.weight[k] = w;
                     present += w;
@@ -182,8 +184,11 @@ impl Material {
     /// nearest the best view and light (sum of angles).
     fn nearest_pair(&self, nv: &Nearest4, nl: &Nearest4) -> Blend16 {
         let (v, l) = (self.views.units()[nv.index[0] as usize], self.lights.units()[nl.index[0] as usize]);
-        let cost = |p: &DirectionPair| super::blend::angle(p.view.unit(), v) + super::blend::angle(p.light.unit(), l);
-        let best = (0..self.pairs.len()).min_by(|&a, &b| cost(&self.pairs[a]).total_cmp(&cost(&self.pairs[b])));
+        let cost = |p: &DirectionPair| {
+            super::blend::angle(p.view.unit(), v) + super::blend::angle(p.light.unit(), l)
+        };
+        let best =
+            (0..self.pairs.len()).min_by(|&a, &b| cost(&self.pairs[a]).total_cmp(&cost(&self.pairs[b])));
         let mut out = Blend16::DARK;
         out.image[0] = best.unwrap_or(0) as u32;
         out.weight[0] = 1.0;
@@ -216,6 +221,26 @@ impl Material {
         } else {
             i.clamp(0, n as i64 - 1) as usize
         }
+    }
+
+    /// The colour of a blend at texel (x, y) exactly (inside the sample): the vertex-mode
+    /// lookup, without the bilinear weights.
+    pub fn shade_texel(&self, blend: &Blend16, x: usize, y: usize) -> Vec3 {
+        let (plane, offset) = (self.width * self.height * 3, (y * self.width + x) * 3);
+        let mut c = Vec3::ZERO;
+        for k in 0..16 {
+            if blend.weight[k] != 0.0 {
+                let o = blend.image[k] as usize * plane + offset;
+                c += blend.weight[k] * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+            }
+        }
+        c
+    }
+
+    /// The texel (x, y) that (u, v) names exactly, if it is a texel centre inside the sample.
+    pub fn texel_at(&self, u: f32, v: f32) -> Option<(usize, usize)> {
+        let inside = u >= 0.0 && v >= 0.0 && u < self.width as f32 && v < self.height as f32;
+        (inside && u.fract() == 0.0 && v.fract() == 0.0).then_some((u as usize, v as usize))
     }
 
     /// The colour of a blend at (u, v).

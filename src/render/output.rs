@@ -45,7 +45,12 @@ impl Frame {
         self.rgba
             .chunks_exact(4)
             .flat_map(|p| {
-                [linear_to_srgb8(p[0]), linear_to_srgb8(p[1]), linear_to_srgb8(p[2]), (p[3].clamp(0.0, 1.0) * 255.0).round() as u8]
+                [
+                    linear_to_srgb8(p[0]),
+                    linear_to_srgb8(p[1]),
+                    linear_to_srgb8(p[2]),
+                    (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
+                ]
             })
             .collect()
     }
@@ -78,7 +83,8 @@ impl Frame {
                 let mut sum = [0.0f32; 4];
                 for dy in 0..step {
                     for dx in 0..step {
-                        let p = self.pixel((x * step + dx).min(self.width - 1), (y * step + dy).min(self.height - 1));
+                        let p = self
+                            .pixel((x * step + dx).min(self.width - 1), (y * step + dy).min(self.height - 1));
                         (0..4).for_each(|c| sum[c] += p[c]);
                     }
                 }
@@ -135,7 +141,11 @@ impl SequenceWriter {
     /// Prepares `dir` (fails now if it exists without `overwrite`, or cannot be created).
     /// Each frame is written in every one of `formats`.
     pub fn new(dir: &Path, formats: &[FrameFormat], overwrite: bool) -> Result<SequenceWriter> {
-        Ok(SequenceWriter { staged: StagedDir::new(dir, overwrite)?, formats: formats.to_vec(), thumbnails: Vec::new() })
+        Ok(SequenceWriter {
+            staged: StagedDir::new(dir, overwrite)?,
+            formats: formats.to_vec(),
+            thumbnails: Vec::new(),
+        })
     }
 
     /// Writes the next frame.

@@ -1,8 +1,8 @@
 //! A surface texton map ready to render: the mesh, its frames, per-vertex sample
 //! coordinates, and the per-vertex blends of a shot, which both renderers use.
 
-use super::camera::Shot;
 use super::blend::Nearest4;
+use super::camera::Shot;
 use super::material::{Blend16, Material};
 use crate::mesh::frames::Frames;
 use crate::mesh::Mesh;
@@ -133,7 +133,11 @@ impl Scene {
                 match material.light_weights(local) {
                     Some(nl) => {
                         let blend = material.combine(&views[v], &nl, local.z);
-                        material.shade(&blend, self.uv[v].x, self.uv[v].y)
+                        let [u, w] = self.uv[v].to_array();
+                        match material.texel_at(u, w) {
+                            Some((x, y)) => material.shade_texel(&blend, x, y),
+                            None => material.shade(&blend, u, w),
+                        }
                     }
                     None => Vec3::ZERO,
                 }
