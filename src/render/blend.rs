@@ -25,27 +25,6 @@ pub struct Nearest4 {
 /// Angular cells of the lookup grid: θ in 5° rows, φ in 10° columns.
 const THETA_CELLS: usize = 18;
 const PHI_CELLS: usize = 36;
-/// cos of each row's upper θ edge, cos(5° · (k + 1)) for k = 0..17: row r holds the
-/// queries with cos θ in (ROW_COS[r], ROW_COS[r − 1]], found without an acos.
-const ROW_COS: [f32; THETA_CELLS - 1] = [
-    0.996_194_7,
-    0.984_807_8,
-    0.965_925_8,
-    0.939_692_6,
-    0.906_307_8,
-    0.866_025_4,
-    0.819_152_1,
-    0.766_044_4,
-    0.707_106_8,
-    0.642_787_6,
-    0.573_576_4,
-    0.5,
-    0.422_618_3,
-    0.342_020_1,
-    0.258_819_1,
-    0.173_648_2,
-    0.087_155_7,
-];
 
 /// A set of sampled directions on the upper hemisphere, with a grid of candidate lists so
 /// that a query examines a handful of directions instead of all of them.
@@ -54,6 +33,9 @@ pub struct DirectionIndex {
     units: Vec<Vec3>,
     /// Per (θ, φ) cell, every direction that can be among the 5 nearest of a query in it.
     cells: Vec<Vec<u32>>,
+    /// cos of each row's upper θ edge: row r holds the queries with cos θ in
+    /// (row_cos[r], row_cos[r − 1]], found without an acos.
+    row_cos: [f32; THETA_CELLS - 1],
 }
 
 impl DirectionIndex {
@@ -80,7 +62,8 @@ impl DirectionIndex {
                     .collect()
             })
             .collect();
-        DirectionIndex { units, cells }
+        let row_cos = std::array::from_fn(|k| ((k + 1) as f32 * dt).cos());
+        DirectionIndex { units, cells, row_cos }
     }
 
     /// The indexed directions.
@@ -126,7 +109,7 @@ impl DirectionIndex {
     }
 
     fn cell_of(&self, q: Vec3) -> usize {
-        let row = ROW_COS.partition_point(|&c| q.z < c).min(THETA_CELLS - 1);
+        let row = self.row_cos.partition_point(|&c| q.z < c).min(THETA_CELLS - 1);
         let phi = q.y.atan2(q.x).rem_euclid(std::f32::consts::TAU);
         let col = ((phi / cell_phi()) as usize).min(PHI_CELLS - 1);
         row * PHI_CELLS + col
