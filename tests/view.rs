@@ -28,7 +28,8 @@ fn read_rgb(path: &Path) -> Vec<[f32; 3]> {
 
 fn mean_abs_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     assert_eq!(a.len(), b.len());
-    let sum: f64 = a.iter().zip(b).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() as f64).sum::<f64>()).sum();
+    let sum: f64 =
+        a.iter().zip(b).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() as f64).sum::<f64>()).sum();
     sum / (3 * a.len()) as f64
 }
 
@@ -56,7 +57,8 @@ fn gpu_frames_match_cpu_frames_in_both_modes() {
         let (cpu, gpu) = (dir.path().join(format!("cpu-{mode}")), dir.path().join(format!("gpu-{mode}")));
         let r = btfsynth(&[&["-q", "render", s][..], &shot, &["-o", cpu.to_str().unwrap()]].concat());
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        let g = btfsynth(&[&["-q", "view", s, "--headless"][..], &shot, &["-o", gpu.to_str().unwrap()]].concat());
+        let g =
+            btfsynth(&[&["-q", "view", s, "--headless"][..], &shot, &["-o", gpu.to_str().unwrap()]].concat());
         if skipped_for_lack_of_gpu(&g) {
             return;
         }

@@ -31,7 +31,13 @@ pub fn run(scene: Scene, material: Material, plan: &ShotPlan, mode: Mode) -> Res
         Error::invalid(format!("cannot open a window ({e}); render offscreen with --headless -o DIR"))
     };
     let event_loop = EventLoop::new().map_err(|e| no_window(&e))?;
-    let mut app = App { setup: Some((scene, material)), plan: *plan, state: None, error: None, controls: Controls::new(plan, mode) };
+    let mut app = App {
+        setup: Some((scene, material)),
+        plan: *plan,
+        state: None,
+        error: None,
+        controls: Controls::new(plan, mode),
+    };
     eprintln!("{HELP}");
     event_loop.run_app(&mut app).map_err(|e| no_window(&e))?;
     app.error.map_or(Ok(()), Err)
@@ -97,7 +103,10 @@ impl Controls {
 
     fn shot(&self, plan: &ShotPlan, bounds: (Vec3, Vec3), size: (u32, u32)) -> Shot {
         let shot = ShotPlan { size, view: self.view, light: self.light, frames: 1, ..*plan }.shots(bounds)[0];
-        Shot { camera: zoomed(shot.camera, self.zoom, bounds), light: world_direction(self.light.0, self.light.1) }
+        Shot {
+            camera: zoomed(shot.camera, self.zoom, bounds),
+            light: world_direction(self.light.0, self.light.1),
+        }
     }
 }
 
@@ -154,11 +163,13 @@ impl App {
                 .create_window(attributes)
                 .map_err(|e| Error::invalid(format!("cannot open a window ({e}); use --headless -o DIR")))?,
         );
-        let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(event_loop.owned_display_handle()));
+        let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
+            event_loop.owned_display_handle(),
+        ));
         let instance = wgpu::Instance::new(descriptor);
-        let surface = instance
-            .create_surface(window.clone())
-            .map_err(|e| Error::invalid(format!("cannot draw into the window: {e}; use --headless -o DIR")))?;
+        let surface = instance.create_surface(window.clone()).map_err(|e| {
+            Error::invalid(format!("cannot draw into the window: {e}; use --headless -o DIR"))
+        })?;
         let gpu = Gpu::new(&instance, Some(&surface))?;
         let size = window.inner_size();
         let mut config = surface

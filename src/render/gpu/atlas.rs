@@ -21,7 +21,12 @@ pub struct AtlasLayout {
 impl AtlasLayout {
     /// The smallest layout of `count` images of `width × height` whose layers fit in
     /// `max_dim` texels a side and whose number fits in `max_layers`.
-    pub fn new(count: u32, (width, height): (u32, u32), max_dim: u32, max_layers: u32) -> Result<AtlasLayout> {
+    pub fn new(
+        count: u32,
+        (width, height): (u32, u32),
+        max_dim: u32,
+        max_layers: u32,
+    ) -> Result<AtlasLayout> {
         if width == 0 || height == 0 || width > max_dim || height > max_dim {
             return Err(Error::invalid(format!(
                 "sample images of {width}x{height} do not fit this GPU's {max_dim}-texel textures"
@@ -54,7 +59,12 @@ impl AtlasLayout {
 }
 
 /// Uploads every image of `material` into a new texture array laid out as `layout`.
-pub fn upload(device: &wgpu::Device, queue: &wgpu::Queue, material: &Material, layout: &AtlasLayout) -> wgpu::Texture {
+pub fn upload(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    material: &Material,
+    layout: &AtlasLayout,
+) -> wgpu::Texture {
     let (lw, lh) = layout.layer_size();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("sample image atlas"),
@@ -68,8 +78,11 @@ pub fn upload(device: &wgpu::Device, queue: &wgpu::Queue, material: &Material, l
     });
     let texels = (layout.width * layout.height) as usize;
     for (i, rgb) in material.pixels().chunks_exact(texels * 3).enumerate() {
-        let rgba: Vec<u16> =
-            rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|c| f16::from_f32(c).to_bits()).collect();
+        let rgba: Vec<u16> = rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 1.0])
+            .map(|c| f16::from_f32(c).to_bits())
+            .collect();
         let (layer, x, y) = layout.place(i as u32);
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
@@ -79,7 +92,11 @@ pub fn upload(device: &wgpu::Device, queue: &wgpu::Queue, material: &Material, l
                 aspect: wgpu::TextureAspect::All,
             },
             bytemuck::cast_slice(&rgba),
-            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(layout.width * 8), rows_per_image: None },
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(layout.width * 8),
+                rows_per_image: None,
+            },
             wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
         );
     }
@@ -104,7 +121,8 @@ mod tests {
         let a = AtlasLayout::new(6561, (256, 256), 8192, 256).unwrap();
         assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (32, 32, 1024, 7));
         assert_eq!(a.place(1024 + 33), (1, 256, 256));
-        assert_eq!(a.place(6560), (6, (6560 % 1024 % 32) * 256, (6560 % 1024 / 32) * 256));
+        // 6560 = 6 × 1024 + 416, and 416 = 13 rows of 32: the first tile of row 13.
+        assert_eq!(a.place(6560), (6, 0, 13 * 256));
         // Every image has its own tile inside its layer.
         let mut seen = std::collections::HashSet::new();
         for i in 0..6561 {

@@ -24,7 +24,8 @@ impl Gpu {
             compatible_surface: surface,
             ..Default::default()
         };
-        let adapter = pollster::block_on(instance.request_adapter(&options)).map_err(|_| Error::invalid(NO_ADAPTER))?;
+        let adapter =
+            pollster::block_on(instance.request_adapter(&options)).map_err(|_| Error::invalid(NO_ADAPTER))?;
         let descriptor = wgpu::DeviceDescriptor {
             label: Some("btfsynth"),
             required_limits: adapter.limits(),

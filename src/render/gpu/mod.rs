@@ -105,7 +105,11 @@ impl GpuRenderer {
             )));
         }
         let blends = display_blends(&self.scene, &self.material, shot, display);
-        let settings = FrameSettings { mode, false_colour: display == Display::TextonFalseColour, shadows: self.shadows };
+        let settings = FrameSettings {
+            mode,
+            false_colour: display == Display::TextonFalseColour,
+            shadows: self.shadows,
+        };
         self.passes.prepare(&self.gpu.queue, shot, &blends, settings);
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         let target = self.target.create_view(&Default::default());

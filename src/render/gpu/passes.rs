@@ -78,7 +78,13 @@ pub struct Passes {
 impl Passes {
     /// Uploads the scene and the material and builds the pipelines for a colour target of
     /// `format`.
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, scene: &Scene, material: &Material, format: wgpu::TextureFormat) -> Result<Passes> {
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+        material: &Material,
+        format: wgpu::TextureFormat,
+    ) -> Result<Passes> {
         let limits = device.limits();
         let layout = AtlasLayout::new(
             material.len() as u32,
@@ -87,17 +93,18 @@ impl Passes {
             limits.max_texture_array_layers,
         )?;
         let blend_bytes = (scene.mesh.vertex_count() * std::mem::size_of::<GpuBlend>()) as u64;
-        if blend_bytes > limits.max_storage_buffer_binding_size as u64 {
+        if blend_bytes > limits.max_storage_buffer_binding_size {
             return Err(Error::invalid(format!(
                 "{} vertices need {blend_bytes} bytes of blends but this GPU binds at most {}",
                 scene.mesh.vertex_count(),
                 limits.max_storage_buffer_binding_size
             )));
         }
-        let images = atlas::upload(device, queue, material, &layout).create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
+        let images =
+            atlas::upload(device, queue, material, &layout).create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
         let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
         let corner_buffer = storage(device, "corners", bytemuck::cast_slice(&corners));
@@ -133,7 +140,10 @@ impl Passes {
                 buffer_entry(2, buffers[2]),
                 buffer_entry(3, buffers[3]),
                 wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&images) },
-                wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&shadow_map) },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(&shadow_map),
+                },
                 wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(&sampler) },
             ],
         });
@@ -161,7 +171,8 @@ impl Passes {
 
     /// Writes this frame's blends (one per vertex) and uniforms.
     pub fn prepare(&self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
-        let gpu: Vec<GpuBlend> = blends.iter().map(|b| GpuBlend { image: b.image, weight: b.weight }).collect();
+        let gpu: Vec<GpuBlend> =
+            blends.iter().map(|b| GpuBlend { image: b.image, weight: b.weight }).collect();
         queue.write_buffer(&self.blends, 0, bytemuck::cast_slice(&gpu));
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&self.uniforms_for(shot, settings)));
     }
@@ -205,7 +216,13 @@ impl Passes {
     }
 
     /// Records the shadow pass and the surface pass into `target` (cleared to `clear`).
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView, depth: &wgpu::TextureView, clear: wgpu::Color) {
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        clear: wgpu::Color,
+    ) {
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("shadow pass"),
@@ -253,7 +270,11 @@ fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     // An empty binding is invalid; a mesh always has triangles, but stay safe.
     let bytes = if bytes.is_empty() { &[0u8; 4][..] } else { bytes };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::STORAGE })
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytes,
+        usage: wgpu::BufferUsages::STORAGE,
+    })
 }
 
 fn buffer_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {

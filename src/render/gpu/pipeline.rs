@@ -8,12 +8,23 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::{BindingType as B, ShaderStages as S};
     let both = S::VERTEX | S::FRAGMENT;
-    let storage = B::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None };
+    let storage = B::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
     let entry = |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: both, ty, count: None };
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("surface bindings"),
         entries: &[
-            entry(0, B::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None }),
+            entry(
+                0,
+                B::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
             entry(1, storage),
             entry(2, storage),
             entry(3, storage),
@@ -41,12 +52,28 @@ pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
 /// The layout of `shadow.wgsl`'s group 0.
 pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::BindingType as B;
-    let storage = B::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None };
-    let entry = |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::VERTEX, ty, count: None };
+    let storage = B::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty,
+        count: None,
+    };
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("shadow bindings"),
         entries: &[
-            entry(0, B::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None }),
+            entry(
+                0,
+                B::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
             entry(1, storage),
             entry(2, storage),
         ],
@@ -94,7 +121,11 @@ pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::
 
 /// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
 /// window's format in the viewer); no culling, the shader blackens back faces as the CPU does.
-pub fn surface(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+pub fn surface(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("surface.wgsl"),
         source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
@@ -121,7 +152,11 @@ pub fn surface(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout, format: 
             module: &module,
             entry_point: Some("fs_surface"),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
         }),
         multiview_mask: None,
         cache: None,
