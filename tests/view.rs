@@ -98,3 +98,17 @@ fn headless_view_refuses_bad_input_and_writes_nothing() {
     after.retain(|e| e != "empty");
     assert_eq!(before, after, "no staging directory left behind");
 }
+
+#[test]
+fn the_window_without_a_display_says_to_use_headless() {
+    let dir = tempfile::tempdir().unwrap();
+    let surface = bunny_surface(dir.path());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+        .args(["view", surface.to_str().unwrap()])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "--headless");
+}

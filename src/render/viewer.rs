@@ -28,7 +28,11 @@ const LIGHT_SPEED: f32 = 40.0;
 /// runs until it is closed. Fails with one line if there is no display.
 pub fn run(scene: Scene, material: Material, plan: &ShotPlan, mode: Mode) -> Result<()> {
     let no_window = |e: &dyn std::fmt::Display| {
-        Error::invalid(format!("cannot open a window ({e}); render offscreen with --headless -o DIR"))
+        // winit's OS errors start with the source location of winit itself: drop it.
+        let text = e.to_string();
+        let reason =
+            text.strip_prefix("os error at ").and_then(|t| t.split_once(": ")).map_or(&*text, |(_, r)| r);
+        Error::invalid(format!("cannot open a window ({reason}); render offscreen with --headless -o DIR"))
     };
     let event_loop = EventLoop::new().map_err(|e| no_window(&e))?;
     let mut app = App {
