@@ -10,6 +10,7 @@ mod remesh;
 mod render;
 mod shots;
 mod synth;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -49,6 +50,8 @@ enum Command {
     Remesh(remesh::RemeshArgs),
     /// Render a surface map on the CPU: ray-traced frames with shadows (EXR or PNG) and a contact sheet.
     Render(render::RenderArgs),
+    /// Render a surface map on the GPU (wgpu): an interactive window, or --headless frames.
+    View(view::ViewArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -77,6 +80,7 @@ pub fn main() -> ExitCode {
         Command::Eval(args) => eval::run(args, &bars),
         Command::Remesh(args) => remesh::run(args, &bars),
         Command::Render(args) => render::run(args, &bars),
+        Command::View(args) => view::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };

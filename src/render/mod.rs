@@ -12,8 +12,10 @@ pub mod material;
 pub use material::{Blend16, Material};
 pub mod camera;
 pub mod cpu;
+pub mod gpu;
 pub mod output;
 pub mod scene;
+pub mod viewer;
 
 pub use camera::{Camera, Orbit, Projection, Shot, ShotPlan};
 pub use output::{Frame, FrameFormat, SequenceWriter};

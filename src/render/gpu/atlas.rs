@@ -1,0 +1,140 @@
+//! The sample images on the GPU: a 2D texture array of Rgba16Float atlases, several images
+//! per layer as tiles, because a BTF has thousands of images and an array has few layers
+//! (256 by default). The shader fetches texels with `textureLoad` and filters by hand.
+
+use crate::render::Material;
+use crate::{Error, Result};
+use half::f16;
+
+/// Where each image lies: tiles of `width × height` in rows of `tiles_x`, `per_layer` tiles
+/// per layer, image i in layer `i / per_layer`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AtlasLayout {
+    pub width: u32,
+    pub height: u32,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    pub per_layer: u32,
+    pub layers: u32,
+}
+
+impl AtlasLayout {
+    /// The smallest layout of `count` images of `width × height` whose layers fit in
+    /// `max_dim` texels a side and whose number fits in `max_layers`.
+    pub fn new(
+        count: u32,
+        (width, height): (u32, u32),
+        max_dim: u32,
+        max_layers: u32,
+    ) -> Result<AtlasLayout> {
+        if width == 0 || height == 0 || width > max_dim || height > max_dim {
+            return Err(Error::invalid(format!(
+                "sample images of {width}x{height} do not fit this GPU's {max_dim}-texel textures"
+            )));
+        }
+        let count = count.max(1);
+        let tiles_x = (max_dim / width).min(count);
+        let tiles_y = (max_dim / height).min(count.div_ceil(tiles_x));
+        let per_layer = tiles_x * tiles_y;
+        let layers = count.div_ceil(per_layer);
+        if layers > max_layers {
+            return Err(Error::invalid(format!(
+                "{count} sample images of {width}x{height} need {layers} texture layers of {max_dim}² \
+                 but this GPU allows {max_layers}"
+            )));
+        }
+        Ok(AtlasLayout { width, height, tiles_x, tiles_y, per_layer, layers })
+    }
+
+    /// Layer and texel origin of image `i`.
+    pub fn place(&self, i: u32) -> (u32, u32, u32) {
+        let tile = i % self.per_layer;
+        (i / self.per_layer, (tile % self.tiles_x) * self.width, (tile / self.tiles_x) * self.height)
+    }
+
+    /// Size of one layer in texels.
+    pub fn layer_size(&self) -> (u32, u32) {
+        (self.tiles_x * self.width, self.tiles_y * self.height)
+    }
+}
+
+/// Uploads every image of `material` into a new texture array laid out as `layout`.
+pub fn upload(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    material: &Material,
+    layout: &AtlasLayout,
+) -> wgpu::Texture {
+    let (lw, lh) = layout.layer_size();
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("sample image atlas"),
+        size: wgpu::Extent3d { width: lw, height: lh, depth_or_array_layers: layout.layers },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let texels = (layout.width * layout.height) as usize;
+    for (i, rgb) in material.pixels().chunks_exact(texels * 3).enumerate() {
+        let rgba: Vec<u16> = rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 1.0])
+            .map(|c| f16::from_f32(c).to_bits())
+            .collect();
+        let (layer, x, y) = layout.place(i as u32);
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d { x, y, z: layer },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&rgba),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(layout.width * 8),
+                rows_per_image: None,
+            },
+            wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
+        );
+    }
+    texture
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn few_images_share_one_compact_layer() {
+        let a = AtlasLayout::new(5, (48, 32), 8192, 256).unwrap();
+        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (5, 1, 5, 1));
+        assert_eq!(a.layer_size(), (240, 32));
+        assert_eq!(a.place(4), (0, 192, 0));
+    }
+
+    #[test]
+    fn many_images_fill_layers_row_by_row() {
+        // 6561 images of 256² in 8192² layers: 32 × 32 = 1024 per layer, 7 layers.
+        let a = AtlasLayout::new(6561, (256, 256), 8192, 256).unwrap();
+        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (32, 32, 1024, 7));
+        assert_eq!(a.place(1024 + 33), (1, 256, 256));
+        // 6560 = 6 × 1024 + 416, and 416 = 13 rows of 32: the first tile of row 13.
+        assert_eq!(a.place(6560), (6, 0, 13 * 256));
+        // Every image has its own tile inside its layer.
+        let mut seen = std::collections::HashSet::new();
+        for i in 0..6561 {
+            let (l, x, y) = a.place(i);
+            assert!(l < a.layers && x + 256 <= 8192 && y + 256 <= 8192);
+            assert!(seen.insert((l, x, y)));
+        }
+    }
+
+    #[test]
+    fn too_many_or_too_large_images_are_refused() {
+        assert!(AtlasLayout::new(6561, (256, 256), 2048, 64).is_err());
+        assert!(AtlasLayout::new(1, (9000, 16), 8192, 256).is_err());
+    }
+}

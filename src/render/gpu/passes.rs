@@ -1,0 +1,310 @@
+//! The scene on the GPU and the two passes that draw it: buffers (vertices, corners,
+//! blends, uniforms), the shadow map, bind groups, and the per-frame uploads.
+
+use super::atlas::{self, AtlasLayout};
+use super::pipeline::{self, DEPTH_FORMAT};
+use crate::render::camera::{Camera, Projection};
+use crate::render::{Blend16, Material, Mode, Scene, Shot};
+use crate::{Error, Result};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+/// One vertex as `surface.wgsl` reads it (WGSL's vec3 takes 16 bytes with the scalar after it).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuVertex {
+    position: [f32; 3],
+    label: u32,
+    s: [f32; 3],
+    u: f32,
+    t: [f32; 3],
+    v: f32,
+    n: [f32; 3],
+    pad: f32,
+}
+
+/// A vertex's blend as the shader reads it.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuBlend {
+    image: [u32; 16],
+    weight: [f32; 16],
+}
+
+/// `surface.wgsl`'s `Uniforms` (the shadow pass reads only the first matrix).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniforms {
+    light_view_proj: [[f32; 4]; 4],
+    view_proj: [[f32; 4]; 4],
+    light: [f32; 4],
+    eye: [f32; 4],
+    towards_eye: [f32; 4],
+    flags: [u32; 4],
+    atlas: [u32; 4],
+    params: [f32; 4],
+}
+
+/// What a frame shows besides the shot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameSettings {
+    pub mode: Mode,
+    /// Colour each texton label instead of fetching texels.
+    pub false_colour: bool,
+    pub shadows: bool,
+}
+
+/// Default side of the square shadow map, in texels.
+pub const SHADOW_MAP_SIZE: u32 = 2048;
+
+/// Everything the passes need that lives on the GPU.
+pub struct Passes {
+    shadow_pipeline: wgpu::RenderPipeline,
+    surface_pipeline: wgpu::RenderPipeline,
+    shadow_bindings: wgpu::BindGroup,
+    surface_bindings: wgpu::BindGroup,
+    uniforms: wgpu::Buffer,
+    blends: wgpu::Buffer,
+    shadow_map: wgpu::TextureView,
+    corner_count: u32,
+    layout: AtlasLayout,
+    tileable: bool,
+    texel: f32,
+    /// Bounding ball of the model, which the light's orthographic view is fitted to.
+    ball: (Vec3, f32),
+}
+
+impl Passes {
+    /// Uploads the scene and the material and builds the pipelines for a colour target of
+    /// `format`.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+        material: &Material,
+        format: wgpu::TextureFormat,
+    ) -> Result<Passes> {
+        let limits = device.limits();
+        let layout = AtlasLayout::new(
+            material.len() as u32,
+            (material.width() as u32, material.height() as u32),
+            limits.max_texture_dimension_2d,
+            limits.max_texture_array_layers,
+        )?;
+        let blend_bytes = (scene.mesh.vertex_count() * std::mem::size_of::<GpuBlend>()) as u64;
+        if blend_bytes > limits.max_storage_buffer_binding_size {
+            return Err(Error::invalid(format!(
+                "{} vertices need {blend_bytes} bytes of blends but this GPU binds at most {}",
+                scene.mesh.vertex_count(),
+                limits.max_storage_buffer_binding_size
+            )));
+        }
+        let images =
+            atlas::upload(device, queue, material, &layout).create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
+        let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
+        let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
+        let corner_buffer = storage(device, "corners", bytemuck::cast_slice(&corners));
+        let blends = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("blends"),
+            size: blend_bytes.max(4),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("uniforms"),
+            size: std::mem::size_of::<Uniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let shadow_map = depth_texture(device, (SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), true);
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shadow comparison"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+        let surface_layout = pipeline::bind_group_layout(device);
+        let shadow_layout = pipeline::shadow_bind_group_layout(device);
+        let buffers = [&uniforms, &vertices, &corner_buffer, &blends];
+        let surface_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("surface bindings"),
+            layout: &surface_layout,
+            entries: &[
+                buffer_entry(0, buffers[0]),
+                buffer_entry(1, buffers[1]),
+                buffer_entry(2, buffers[2]),
+                buffer_entry(3, buffers[3]),
+                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&images) },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(&shadow_map),
+                },
+                wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(&sampler) },
+            ],
+        });
+        let shadow_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow bindings"),
+            layout: &shadow_layout,
+            entries: &[buffer_entry(0, buffers[0]), buffer_entry(1, buffers[1]), buffer_entry(2, buffers[2])],
+        });
+        let (lo, hi) = scene.mesh.bounds();
+        Ok(Passes {
+            shadow_pipeline: pipeline::shadow(device, &shadow_layout),
+            surface_pipeline: pipeline::surface(device, &surface_layout, format),
+            shadow_bindings,
+            surface_bindings,
+            uniforms,
+            blends,
+            shadow_map,
+            corner_count: corners.len() as u32,
+            layout,
+            tileable: material.tileable,
+            texel: scene.texel,
+            ball: (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-6)),
+        })
+    }
+
+    /// Writes this frame's blends (one per vertex) and uniforms.
+    pub fn prepare(&self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
+        let gpu: Vec<GpuBlend> =
+            blends.iter().map(|b| GpuBlend { image: b.image, weight: b.weight }).collect();
+        queue.write_buffer(&self.blends, 0, bytemuck::cast_slice(&gpu));
+        queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&self.uniforms_for(shot, settings)));
+    }
+
+    fn uniforms_for(&self, shot: &Shot, settings: FrameSettings) -> Uniforms {
+        let camera = &shot.camera;
+        let perspective = matches!(camera.projection, Projection::Perspective { .. });
+        let radius = self.ball.1;
+        let l = &self.layout;
+        Uniforms {
+            light_view_proj: self.light_camera(shot.light).view_proj().to_cols_array_2d(),
+            view_proj: camera.view_proj().to_cols_array_2d(),
+            light: shot.light.extend(0.0).to_array(),
+            eye: camera.eye.extend(if perspective { 1.0 } else { 0.0 }).to_array(),
+            towards_eye: (camera.eye - camera.target).normalize().extend(0.0).to_array(),
+            flags: [
+                (settings.mode == Mode::Pixel) as u32,
+                settings.false_colour as u32,
+                settings.shadows as u32,
+                self.tileable as u32,
+            ],
+            atlas: [l.width, l.height, l.tiles_x, l.per_layer],
+            params: [self.texel, 2.0 * radius / SHADOW_MAP_SIZE as f32, 1.0 / SHADOW_MAP_SIZE as f32, 0.0],
+        }
+    }
+
+    /// An orthographic camera looking along the light at the model's bounding ball.
+    fn light_camera(&self, light: Vec3) -> Camera {
+        let (centre, radius) = self.ball;
+        let r = radius * 1.02;
+        Camera {
+            eye: centre + light * 2.0 * r,
+            target: centre,
+            up: if light.y.abs() > 0.999 { Vec3::NEG_Z } else { Vec3::Y },
+            projection: Projection::Orthographic { half_height: r },
+            width: SHADOW_MAP_SIZE,
+            height: SHADOW_MAP_SIZE,
+            near: 0.5 * r,
+            far: 3.5 * r,
+        }
+    }
+
+    /// Records the shadow pass and the surface pass into `target` (cleared to `clear`).
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        clear: wgpu::Color,
+    ) {
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shadow pass"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(depth_attachment(&self.shadow_map)),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.shadow_pipeline);
+            pass.set_bind_group(0, &self.shadow_bindings, &[]);
+            pass.draw(0..self.corner_count, 0..1);
+        }
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("surface pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: Some(depth_attachment(depth)),
+            ..Default::default()
+        });
+        pass.set_pipeline(&self.surface_pipeline);
+        pass.set_bind_group(0, &self.surface_bindings, &[]);
+        pass.draw(0..self.corner_count, 0..1);
+    }
+}
+
+fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
+    let (p, f) = (scene.mesh.positions(), &scene.frames);
+    (0..p.len())
+        .map(|v| GpuVertex {
+            position: p[v].to_array(),
+            label: scene.labels.get(v).copied().unwrap_or(0) as u32,
+            s: f.s[v].to_array(),
+            u: scene.uv[v].x,
+            t: f.t[v].to_array(),
+            v: scene.uv[v].y,
+            n: f.n[v].to_array(),
+            pad: 0.0,
+        })
+        .collect()
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    // An empty binding is invalid; a mesh always has triangles, but stay safe.
+    let bytes = if bytes.is_empty() { &[0u8; 4][..] } else { bytes };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytes,
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+fn buffer_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+}
+
+fn depth_attachment(view: &wgpu::TextureView) -> wgpu::RenderPassDepthStencilAttachment<'_> {
+    wgpu::RenderPassDepthStencilAttachment {
+        view,
+        depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+        stencil_ops: None,
+    }
+}
+
+/// A depth texture of `size`; `sampled` for the shadow map, which the surface pass reads.
+pub fn depth_texture(device: &wgpu::Device, (width, height): (u32, u32), sampled: bool) -> wgpu::TextureView {
+    let mut usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
+    if sampled {
+        usage |= wgpu::TextureUsages::TEXTURE_BINDING;
+    }
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}

@@ -1,0 +1,164 @@
+//! The two render pipelines (depth-only shadow pass from the light, surface pass from the
+//! camera) and the one bind group layout they share.
+
+/// Depth format of the shadow map and of the camera's depth buffer.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first three bindings).
+pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    use wgpu::{BindingType as B, ShaderStages as S};
+    let both = S::VERTEX | S::FRAGMENT;
+    let storage = B::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: both, ty, count: None };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("surface bindings"),
+        entries: &[
+            entry(
+                0,
+                B::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
+            entry(1, storage),
+            entry(2, storage),
+            entry(3, storage),
+            entry(
+                4,
+                B::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2Array,
+                    multisampled: false,
+                },
+            ),
+            entry(
+                5,
+                B::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+            ),
+            entry(6, B::Sampler(wgpu::SamplerBindingType::Comparison)),
+        ],
+    })
+}
+
+/// The layout of `shadow.wgsl`'s group 0.
+pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    use wgpu::BindingType as B;
+    let storage = B::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty,
+        count: None,
+    };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("shadow bindings"),
+        entries: &[
+            entry(
+                0,
+                B::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
+            entry(1, storage),
+            entry(2, storage),
+        ],
+    })
+}
+
+fn layout(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::PipelineLayout {
+    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(bindings)],
+        immediate_size: 0,
+    })
+}
+
+/// Depth from the light; both faces cast shadows (like the CPU's shadow rays), and the
+/// slope-scaled bias keeps lit surfaces from shadowing themselves.
+pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("shadow.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/shadow.wgsl").into()),
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("shadow pass"),
+        layout: Some(&layout(device, bindings)),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_shadow"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
+/// window's format in the viewer); no culling, the shader blackens back faces as the CPU does.
+pub fn surface(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("surface.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("surface pass"),
+        layout: Some(&layout(device, bindings)),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_surface"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_surface"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
