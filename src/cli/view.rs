@@ -51,6 +51,16 @@ impl From<DisplayArg> for Display {
     }
 }
 
+/// Some Vulkan drivers try to reach a Wayland compositor while listing devices, and
+/// libwayland then prints "error: XDG_RUNTIME_DIR is invalid or not set" although nothing is
+/// wrong. Offscreen rendering needs no display: with no session variables set, point the
+/// probe at a directory that holds no compositor socket, so it fails quietly.
+fn quiet_wayland_probe() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir().join("btfsynth-no-display"));
+    }
+}
+
 pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     let plan = args.shots.plan()?;
     if !args.headless {
@@ -59,6 +69,7 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
         return Ok(viewer::run(scene, material, &plan, args.shots.mode)?);
     }
     let dir = args.out.output.clone().context("--headless renders into a directory: give -o DIR")?;
+    quiet_wayland_probe();
     let mut writer = SequenceWriter::new(&dir, &[args.out.format], args.out.force)?;
     let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
     let material = Material::open(&analysis)?;
