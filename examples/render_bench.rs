@@ -1,10 +1,11 @@
-//! Timings behind the rendering benchmarks of the README: per-vertex blends, per-vertex
-//! relighting (Tong §6's vertex mode: blends and colours for a new light), and CPU frames.
+//! Timings behind the rendering benchmarks: per-vertex blends, per-vertex relighting
+//! (Tong §6's interactive mode: new colours for a new light, the camera fixed), and CPU
+//! frames. Loading and BVH building are not timed.
 //!
 //! `cargo run --release --example render_bench -- SURFACE.ply [SIZE [ANALYSIS]]`
 
 use btfsynth::render::cpu::{render, vertex_lit, RenderOptions, Tracer};
-use btfsynth::render::scene::open_surface;
+use btfsynth::render::scene::{open_surface, Relighter};
 use btfsynth::render::{Material, Mode, Orbit, ShotPlan};
 use std::time::Instant;
 
@@ -36,9 +37,9 @@ fn main() -> btfsynth::Result<()> {
     time("per-vertex blends", frames, &mut |i| {
         std::hint::black_box(scene.vertex_blends(&material, &shots[i]));
     });
-    let views = scene.vertex_views(&material, &shots[0].camera);
+    let relighter = Relighter::new(&scene, &material, &shots[0].camera);
     time("per-vertex relight (views kept, no shadows)", frames, &mut |i| {
-        std::hint::black_box(scene.relight(&material, &views, shots[i].light));
+        std::hint::black_box(relighter.colours(&material, shots[i].light));
     });
     time("per-vertex relight with shadow rays", frames, &mut |i| {
         let blends = scene.vertex_blends(&material, &shots[i]);

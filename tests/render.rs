@@ -208,3 +208,23 @@ fn render_writes_a_sequence_and_refuses_bad_input() {
     after.sort();
     assert_eq!(after, before, "nothing written by the failed runs");
 }
+
+#[test]
+fn relighting_with_kept_views_equals_full_vertex_shading() {
+    let (w, h) = (5, 4);
+    let pairs = DirectionSet::Grid(9).pairs();
+    let pixels = (0..pairs.len() * w * h * 3).map(|i| btfsynth::seeded::unit(8, i as i64, 0, 0)).collect();
+    let material = Material::new(w, h, pixels, pairs).unwrap();
+    let scene = identity_grid((0, w as i32 - 1), (0, h as i32 - 1));
+    let camera = Camera::framing(Vec3::ZERO, 5.0, Vec3::new(0.3, 1.0, 0.5), false, (16, 16));
+    let relighter = btfsynth::render::scene::Relighter::new(&scene, &material, &camera);
+    for (theta, phi) in [(10.0, 0.0), (50.0, 100.0), (80.0, 250.0), (120.0, 10.0)] {
+        let light = btfsynth::render::camera::world_direction(theta, phi);
+        let blends = scene.vertex_blends(&material, &Shot { camera, light });
+        let expected = scene.vertex_colours(&material, &blends, None);
+        let got = relighter.colours(&material, light);
+        for (a, b) in got.iter().zip(&expected) {
+            assert!((*a - *b).length() < 1e-5, "light {theta},{phi}: {a} vs {b}");
+        }
+    }
+}

@@ -22,9 +22,10 @@ pub struct Nearest4 {
     pub weight: [f32; 4],
 }
 
-/// Angular cells of the lookup grid: θ in 5° rows, φ in 10° columns.
-const THETA_CELLS: usize = 18;
-const PHI_CELLS: usize = 36;
+/// Angular cells of the lookup grid: θ in 2.5° rows, φ in 5° columns (finer cells, fewer
+/// candidates per query).
+const THETA_CELLS: usize = 36;
+const PHI_CELLS: usize = 72;
 
 /// A set of sampled directions on the upper hemisphere, with a grid of candidate lists so
 /// that a query examines a handful of directions instead of all of them.

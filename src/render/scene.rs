@@ -110,40 +110,6 @@ impl Scene {
             })
             .collect()
     }
-
-    /// Per vertex, the weighted nearest sampled views for `camera`: what relighting keeps
-    /// while only the light moves.
-    pub fn vertex_views(&self, material: &Material, camera: &super::Camera) -> Vec<Nearest4> {
-        let positions = self.mesh.positions();
-        (0..positions.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|v| material.view_weights(self.to_local(v, camera.towards_eye(positions[v]))))
-            .collect()
-    }
-
-    /// Per-vertex colours under a new light, the views kept from [`Scene::vertex_views`]:
-    /// the paper's interactive relighting (no shadows).
-    pub fn relight(&self, material: &Material, views: &[Nearest4], light: Vec3) -> Vec<Vec3> {
-        (0..self.uv.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|v| {
-                let local = self.to_local(v, light);
-                match material.light_weights(local) {
-                    Some(nl) => {
-                        let blend = material.combine(&views[v], &nl, local.z);
-                        let [u, w] = self.uv[v].to_array();
-                        match material.texel_at(u, w) {
-                            Some((x, y)) => material.shade_texel(&blend, x, y),
-                            None => material.shade(&blend, u, w),
-                        }
-                    }
-                    None => Vec3::ZERO,
-                }
-            })
-            .collect()
-    }
 }
 
 impl Scene {
@@ -159,6 +125,64 @@ impl Scene {
         let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
         let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
         Ok(Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0 })
+    }
+}
+
+/// What per-vertex relighting keeps while only the light moves (Tong §6's interactive
+/// mode): per vertex its frame, sample coordinate and weighted nearest views for a fixed
+/// camera, stored in an order grouped by sample texel, so that consecutive vertices read
+/// the same texel of the images and stay in cache.
+pub struct Relighter {
+    vertices: Vec<RelightVertex>,
+}
+
+struct RelightVertex {
+    index: u32,
+    frame: [Vec3; 3],
+    uv: Vec2,
+    views: Nearest4,
+}
+
+impl Relighter {
+    pub fn new(scene: &Scene, material: &Material, camera: &super::Camera) -> Relighter {
+        let positions = scene.mesh.positions();
+        let f = &scene.frames;
+        let mut vertices: Vec<RelightVertex> = (0..positions.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|v| RelightVertex {
+                index: v as u32,
+                frame: [f.s[v], f.t[v], f.n[v]],
+                uv: scene.uv[v],
+                views: material.view_weights(scene.to_local(v, camera.towards_eye(positions[v]))),
+            })
+            .collect();
+        vertices.sort_by_key(|r| (r.uv.y.floor() as i64, r.uv.x.floor() as i64));
+        Relighter { vertices }
+    }
+
+    /// Per-vertex colours under a directional light towards `light` (no shadows).
+    pub fn colours(&self, material: &Material, light: Vec3) -> Vec<Vec3> {
+        let in_order: Vec<Vec3> = self
+            .vertices
+            .par_iter()
+            .with_min_len(4096)
+            .map(|r| {
+                let [s, t, n] = r.frame;
+                let local = Vec3::new(light.dot(s), light.dot(t), light.dot(n));
+                let Some(nl) = material.light_weights(local) else { return Vec3::ZERO };
+                let blend = material.combine(&r.views, &nl, local.z);
+                match material.texel_at(r.uv.x, r.uv.y) {
+                    Some((x, y)) => material.shade_texel(&blend, x, y),
+                    None => material.shade(&blend, r.uv.x, r.uv.y),
+                }
+            })
+            .collect();
+        let mut colours = vec![Vec3::ZERO; in_order.len()];
+        for (r, c) in self.vertices.iter().zip(in_order) {
+            colours[r.index as usize] = c;
+        }
+        colours
     }
 }
 
