@@ -198,21 +198,34 @@ impl Material {
     /// Bilinear RGB of image `image` at sample coordinate (u, v) in texels (integers are
     /// texel centres; u along columns, v along rows), wrapping or clamping at the edges.
     pub fn texel(&self, image: u32, u: f32, v: f32) -> Vec3 {
+        self.filtered(image, &self.taps(u, v))
+    }
+
+    /// The four bilinear taps at (u, v): pixel offsets within an image and their weights
+    /// (computed once and shared by the 16 images of a blend).
+    fn taps(&self, u: f32, v: f32) -> [(usize, f32); 4] {
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let base = image as usize * self.width * self.height;
-        let at = |x: i64, y: i64| {
-            let (x, y) = (self.edge(x, self.width), self.edge(y, self.height));
-            let o = (base + y * self.width + x) * 3;
-            Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
-        };
-        if fx == 0.0 && fy == 0.0 {
-            return at(x0, y0);
+        let at = |x: i64, y: i64| (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * 3;
+        [
+            (at(x0, y0), (1.0 - fx) * (1.0 - fy)),
+            (at(x0 + 1, y0), fx * (1.0 - fy)),
+            (at(x0, y0 + 1), (1.0 - fx) * fy),
+            (at(x0 + 1, y0 + 1), fx * fy),
+        ]
+    }
+
+    fn filtered(&self, image: u32, taps: &[(usize, f32); 4]) -> Vec3 {
+        let base = image as usize * self.width * self.height * 3;
+        let mut c = Vec3::ZERO;
+        for &(offset, weight) in taps {
+            if weight != 0.0 {
+                let o = base + offset;
+                c += weight * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+            }
         }
-        let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
-        let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
-        top.lerp(bottom, fy)
+        c
     }
 
     fn edge(&self, i: i64, n: usize) -> usize {
@@ -245,10 +258,11 @@ impl Material {
 
     /// The colour of a blend at (u, v).
     pub fn shade(&self, blend: &Blend16, u: f32, v: f32) -> Vec3 {
+        let taps = self.taps(u, v);
         let mut c = Vec3::ZERO;
         for k in 0..16 {
             if blend.weight[k] != 0.0 {
-                c += blend.weight[k] * self.texel(blend.image[k], u, v);
+                c += blend.weight[k] * self.filtered(blend.image[k], &taps);
             }
         }
         c
