@@ -61,6 +61,7 @@ pub const SHADOW_MAP_SIZE: u32 = 2048;
 /// Everything the passes need that lives on the GPU.
 pub struct Passes {
     shadow_pipeline: wgpu::RenderPipeline,
+    depth_pipeline: wgpu::RenderPipeline,
     surface_pipeline: wgpu::RenderPipeline,
     shadow_bindings: wgpu::BindGroup,
     surface_bindings: wgpu::BindGroup,
@@ -105,6 +106,13 @@ impl Passes {
                 dimension: Some(wgpu::TextureViewDimension::D2Array),
                 ..Default::default()
             });
+        let places: Vec<[i32; 4]> = (0..material.len() as u32)
+            .map(|i| {
+                let (layer, x, y) = layout.place(i);
+                [layer as i32, x as i32, y as i32, 0]
+            })
+            .collect();
+        let places = storage(device, "image places", bytemuck::cast_slice(&places));
         let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
         let corner_buffer = storage(device, "corners", bytemuck::cast_slice(&corners));
@@ -145,6 +153,7 @@ impl Passes {
                     resource: wgpu::BindingResource::TextureView(&shadow_map),
                 },
                 wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(&sampler) },
+                buffer_entry(7, &places),
             ],
         });
         let shadow_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -155,6 +164,7 @@ impl Passes {
         let (lo, hi) = scene.mesh.bounds();
         Ok(Passes {
             shadow_pipeline: pipeline::shadow(device, &shadow_layout),
+            depth_pipeline: pipeline::depth_prepass(device, &surface_layout),
             surface_pipeline: pipeline::surface(device, &surface_layout, format),
             shadow_bindings,
             surface_bindings,
@@ -215,7 +225,8 @@ impl Passes {
         }
     }
 
-    /// Records the shadow pass and the surface pass into `target` (cleared to `clear`).
+    /// Records the shadow pass, the camera's depth pre-pass into `depth` and the surface pass
+    /// into `target` (cleared to `clear`).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -234,6 +245,17 @@ impl Passes {
             pass.set_bind_group(0, &self.shadow_bindings, &[]);
             pass.draw(0..self.corner_count, 0..1);
         }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("depth pre-pass"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(depth_attachment(depth)),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.depth_pipeline);
+            pass.set_bind_group(0, &self.surface_bindings, &[]);
+            pass.draw(0..self.corner_count, 0..1);
+        }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("surface pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -242,7 +264,12 @@ impl Passes {
                 resolve_target: None,
                 ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
             })],
-            depth_stencil_attachment: Some(depth_attachment(depth)),
+            // the pre-pass's depths, read only: nothing after this pass needs them
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Discard }),
+                stencil_ops: None,
+            }),
             ..Default::default()
         });
         pass.set_pipeline(&self.surface_pipeline);

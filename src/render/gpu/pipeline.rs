@@ -1,5 +1,5 @@
-//! The two render pipelines (depth-only shadow pass from the light, surface pass from the
-//! camera) and the one bind group layout they share.
+//! The render pipelines (depth-only shadow pass from the light; depth pre-pass and surface
+//! pass from the camera) and the bind group layouts they use.
 
 /// Depth format of the shadow map and of the camera's depth buffer.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -45,6 +45,7 @@ pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
                 },
             ),
             entry(6, B::Sampler(wgpu::SamplerBindingType::Comparison)),
+            entry(7, storage),
         ],
     })
 }
@@ -119,17 +120,52 @@ pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::
     })
 }
 
+fn surface_module(device: &wgpu::Device) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("surface.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
+    })
+}
+
+/// The camera's depth only (`vs_depth`, the same clip position as `vs_surface`), so that the
+/// surface pass shades each pixel once: on a software rasteriser the fragment shader's 48
+/// bilinear lookups are most of a frame, and overlapping fragments multiplied them.
+pub fn depth_prepass(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    let module = surface_module(device);
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("depth pre-pass"),
+        layout: Some(&layout(device, bindings)),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_depth"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 /// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
 /// window's format in the viewer); no culling, the shader blackens back faces as the CPU does.
+/// It runs after [`depth_prepass`] and shades only the fragments at the depth that pass kept
+/// (`Equal`, no depth writes; `@invariant` positions make the depths identical).
 pub fn surface(
     device: &wgpu::Device,
     bindings: &wgpu::BindGroupLayout,
     format: wgpu::TextureFormat,
 ) -> wgpu::RenderPipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("surface.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
-    });
+    let module = surface_module(device);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("surface pass"),
         layout: Some(&layout(device, bindings)),
@@ -142,8 +178,8 @@ pub fn surface(
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Equal),
             stencil: Default::default(),
             bias: Default::default(),
         }),
