@@ -45,6 +45,10 @@ struct Blend {
 @group(0) @binding(6) var shadow_sampler: sampler_comparison;
 // per image: layer, then the texel origin of its tile (AtlasLayout::place)
 @group(0) @binding(7) var<storage, read> places: array<vec4<i32>>;
+// Vertex mode: each vertex's colour, written once per vertex by cs_vertex_colours (binding 1)
+// and read per corner by vs_surface (binding 0), the same buffer.
+@group(1) @binding(0) var<storage, read> vertex_colours: array<vec4<f32>>;
+@group(1) @binding(1) var<storage, read_write> vertex_colours_out: array<vec4<f32>>;
 
 struct Varyings {
     // invariant: the depth pre-pass (vs_depth) must produce the same depth bit for bit, since
@@ -192,9 +196,24 @@ fn vs_surface(@builtin(vertex_index) i: u32) -> Varyings {
     out.triangle = i / 3u;
     out.colour = vec3<f32>(0.0);
     if u.flags.x == 0u {
-        out.colour = vertex_colour(v);
+        out.colour = vertex_colours[v].rgb;
     }
     return out;
+}
+
+// Vertex mode: vertex_colour of every vertex once, rather than in vs_surface once per corner
+// (about 6 corners a vertex, each 16 bilinear lookups and a shadow test). Dispatched as
+// rows of `num_workgroups.x` groups of 64.
+@compute @workgroup_size(64)
+fn cs_vertex_colours(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let v = id.y * groups.x * 64u + id.x;
+    if v >= arrayLength(&vertices) {
+        return;
+    }
+    vertex_colours_out[v] = vec4<f32>(vertex_colour(v), 1.0);
 }
 
 // Scene::predict_uv: the corner's coordinate plus the offset to p in its tangent frame.

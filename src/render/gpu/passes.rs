@@ -63,8 +63,16 @@ pub struct Passes {
     shadow_pipeline: wgpu::RenderPipeline,
     depth_pipeline: wgpu::RenderPipeline,
     surface_pipeline: wgpu::RenderPipeline,
+    colour_pipeline: wgpu::ComputePipeline,
     shadow_bindings: wgpu::BindGroup,
     surface_bindings: wgpu::BindGroup,
+    /// The vertex colours as the surface pass reads them and as the compute pass writes them.
+    colours_read: wgpu::BindGroup,
+    colours_write: wgpu::BindGroup,
+    vertex_count: u32,
+    /// Whether the last [`Passes::prepare`] was for vertex mode (then `encode` computes the
+    /// vertex colours first).
+    vertex_mode: bool,
     uniforms: wgpu::Buffer,
     blends: wgpu::Buffer,
     shadow_map: wgpu::TextureView,
@@ -136,6 +144,22 @@ impl Passes {
             compare: Some(wgpu::CompareFunction::LessEqual),
             ..Default::default()
         });
+        let vertex_colours = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vertex colours"),
+            size: (scene.mesh.vertex_count() as u64 * 16).max(16),
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let (colours_read_layout, colours_write_layout) = pipeline::vertex_colour_layouts(device);
+        let colour_group = |layout, binding| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vertex colours"),
+                layout,
+                entries: &[buffer_entry(binding, &vertex_colours)],
+            })
+        };
+        let colours_read = colour_group(&colours_read_layout, 0);
+        let colours_write = colour_group(&colours_write_layout, 1);
         let surface_layout = pipeline::bind_group_layout(device);
         let shadow_layout = pipeline::shadow_bind_group_layout(device);
         let buffers = [&uniforms, &vertices, &corner_buffer, &blends];
@@ -165,9 +189,14 @@ impl Passes {
         Ok(Passes {
             shadow_pipeline: pipeline::shadow(device, &shadow_layout),
             depth_pipeline: pipeline::depth_prepass(device, &surface_layout),
-            surface_pipeline: pipeline::surface(device, &surface_layout, format),
+            surface_pipeline: pipeline::surface(device, &surface_layout, &colours_read_layout, format),
+            colour_pipeline: pipeline::vertex_colours(device, &surface_layout, &colours_write_layout),
             shadow_bindings,
             surface_bindings,
+            colours_read,
+            colours_write,
+            vertex_count: scene.mesh.vertex_count() as u32,
+            vertex_mode: false,
             uniforms,
             blends,
             shadow_map,
@@ -180,11 +209,12 @@ impl Passes {
     }
 
     /// Writes this frame's blends (one per vertex) and uniforms.
-    pub fn prepare(&self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
+    pub fn prepare(&mut self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
         let gpu: Vec<GpuBlend> =
             blends.iter().map(|b| GpuBlend { image: b.image, weight: b.weight }).collect();
         queue.write_buffer(&self.blends, 0, bytemuck::cast_slice(&gpu));
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&self.uniforms_for(shot, settings)));
+        self.vertex_mode = settings.mode == Mode::Vertex;
     }
 
     fn uniforms_for(&self, shot: &Shot, settings: FrameSettings) -> Uniforms {
@@ -245,6 +275,19 @@ impl Passes {
             pass.set_bind_group(0, &self.shadow_bindings, &[]);
             pass.draw(0..self.corner_count, 0..1);
         }
+        if self.vertex_mode && self.vertex_count > 0 {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vertex colours"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.colour_pipeline);
+            pass.set_bind_group(0, &self.surface_bindings, &[]);
+            pass.set_bind_group(1, &self.colours_write, &[]);
+            // rows of at most 65535 groups of 64 (the least limit on a dispatch's side)
+            let groups = self.vertex_count.div_ceil(64);
+            let row = groups.min(65535);
+            pass.dispatch_workgroups(row, groups.div_ceil(row), 1);
+        }
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("depth pre-pass"),
@@ -274,6 +317,7 @@ impl Passes {
         });
         pass.set_pipeline(&self.surface_pipeline);
         pass.set_bind_group(0, &self.surface_bindings, &[]);
+        pass.set_bind_group(1, &self.colours_read, &[]);
         pass.draw(0..self.corner_count, 0..1);
     }
 }

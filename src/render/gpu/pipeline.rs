@@ -7,7 +7,7 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first three bindings).
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::{BindingType as B, ShaderStages as S};
-    let both = S::VERTEX | S::FRAGMENT;
+    let both = S::VERTEX | S::FRAGMENT | S::COMPUTE;
     let storage = B::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only: true },
         has_dynamic_offset: false,
@@ -50,6 +50,27 @@ pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
+/// The layouts of `surface.wgsl`'s group 1, the vertex colours: read by the surface pass
+/// (binding 0), written by the vertex-colour compute pass (binding 1).
+pub fn vertex_colour_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
+    let layout = |binding, visibility, read_only| {
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vertex colours"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        })
+    };
+    (layout(0, wgpu::ShaderStages::VERTEX, true), layout(1, wgpu::ShaderStages::COMPUTE, false))
+}
+
 /// The layout of `shadow.wgsl`'s group 0.
 pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::BindingType as B;
@@ -82,10 +103,32 @@ pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout 
 }
 
 fn layout(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::PipelineLayout {
+    groups_layout(device, &[bindings])
+}
+
+fn groups_layout(device: &wgpu::Device, groups: &[&wgpu::BindGroupLayout]) -> wgpu::PipelineLayout {
+    let groups: Vec<_> = groups.iter().map(|g| Some(*g)).collect();
     device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
-        bind_group_layouts: &[Some(bindings)],
+        bind_group_layouts: &groups,
         immediate_size: 0,
+    })
+}
+
+/// Vertex mode's per-vertex colours (`cs_vertex_colours`), run before the camera passes.
+pub fn vertex_colours(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    colours: &wgpu::BindGroupLayout,
+) -> wgpu::ComputePipeline {
+    let module = surface_module(device);
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("vertex colours"),
+        layout: Some(&groups_layout(device, &[bindings, colours])),
+        module: &module,
+        entry_point: Some("cs_vertex_colours"),
+        compilation_options: Default::default(),
+        cache: None,
     })
 }
 
@@ -163,12 +206,13 @@ pub fn depth_prepass(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) ->
 pub fn surface(
     device: &wgpu::Device,
     bindings: &wgpu::BindGroupLayout,
+    colours: &wgpu::BindGroupLayout,
     format: wgpu::TextureFormat,
 ) -> wgpu::RenderPipeline {
     let module = surface_module(device);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("surface pass"),
-        layout: Some(&layout(device, bindings)),
+        layout: Some(&groups_layout(device, &[bindings, colours])),
         vertex: wgpu::VertexState {
             module: &module,
             entry_point: Some("vs_surface"),
