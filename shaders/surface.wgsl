@@ -178,11 +178,12 @@ struct DepthOnly {
 };
 
 // The depth pre-pass: only the nearest depth per pixel, so that fs_surface then runs once
-// per pixel instead of once per overlapping fragment.
+// per pixel instead of once per overlapping fragment. Drawn indexed (the index buffer is
+// `corners`), so v is the vertex itself and shared corners can be shaded once.
 @vertex
-fn vs_depth(@builtin(vertex_index) i: u32) -> DepthOnly {
+fn vs_depth(@builtin(vertex_index) v: u32) -> DepthOnly {
     var out: DepthOnly;
-    out.clip = clip_of(corners[i]);
+    out.clip = clip_of(v);
     return out;
 }
 

@@ -1,4 +1,4 @@
-//! The scene on the GPU and the two passes that draw it: buffers (vertices, corners,
+//! The scene on the GPU and the passes that draw it: buffers (vertices, corners,
 //! blends, uniforms), the shadow map, bind groups, and the per-frame uploads.
 
 use super::atlas::{self, AtlasLayout};
@@ -76,6 +76,9 @@ pub struct Passes {
     uniforms: wgpu::Buffer,
     blends: wgpu::Buffer,
     shadow_map: wgpu::TextureView,
+    /// The triangles' corners, 3 per triangle: a storage buffer for the surface pass, the
+    /// index buffer of the depth-only passes.
+    corners: wgpu::Buffer,
     corner_count: u32,
     layout: AtlasLayout,
     tileable: bool,
@@ -123,7 +126,13 @@ impl Passes {
         let places = storage(device, "image places", bytemuck::cast_slice(&places));
         let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
-        let corner_buffer = storage(device, "corners", bytemuck::cast_slice(&corners));
+        // also the index buffer of the depth-only passes
+        let corner_buffer = buffer(
+            device,
+            "corners",
+            bytemuck::cast_slice(&corners),
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDEX,
+        );
         let blends = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("blends"),
             size: blend_bytes.max(4),
@@ -183,7 +192,7 @@ impl Passes {
         let shadow_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shadow bindings"),
             layout: &shadow_layout,
-            entries: &[buffer_entry(0, buffers[0]), buffer_entry(1, buffers[1]), buffer_entry(2, buffers[2])],
+            entries: &[buffer_entry(0, buffers[0]), buffer_entry(1, buffers[1])],
         });
         let (lo, hi) = scene.mesh.bounds();
         Ok(Passes {
@@ -201,6 +210,7 @@ impl Passes {
             blends,
             shadow_map,
             corner_count: corners.len() as u32,
+            corners: corner_buffer,
             layout,
             tileable: material.tileable,
             texel: scene.texel,
@@ -273,7 +283,8 @@ impl Passes {
             });
             pass.set_pipeline(&self.shadow_pipeline);
             pass.set_bind_group(0, &self.shadow_bindings, &[]);
-            pass.draw(0..self.corner_count, 0..1);
+            pass.set_index_buffer(self.corners.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.corner_count, 0, 0..1);
         }
         if self.vertex_mode && self.vertex_count > 0 {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -297,7 +308,8 @@ impl Passes {
             });
             pass.set_pipeline(&self.depth_pipeline);
             pass.set_bind_group(0, &self.surface_bindings, &[]);
-            pass.draw(0..self.corner_count, 0..1);
+            pass.set_index_buffer(self.corners.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.corner_count, 0, 0..1);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("surface pass"),
@@ -339,12 +351,16 @@ fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    buffer(device, label, bytes, wgpu::BufferUsages::STORAGE)
+}
+
+fn buffer(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
     // An empty binding is invalid; a mesh always has triangles, but stay safe.
     let bytes = if bytes.is_empty() { &[0u8; 4][..] } else { bytes };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytes,
-        usage: wgpu::BufferUsages::STORAGE,
+        usage,
     })
 }
 

@@ -4,7 +4,7 @@
 /// Depth format of the shadow map and of the camera's depth buffer.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first three bindings).
+/// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first two bindings).
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::{BindingType as B, ShaderStages as S};
     let both = S::VERTEX | S::FRAGMENT | S::COMPUTE;
@@ -97,7 +97,6 @@ pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout 
                 },
             ),
             entry(1, storage),
-            entry(2, storage),
         ],
     })
 }
