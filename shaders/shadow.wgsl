@@ -1,5 +1,6 @@
 // Depth-only pass from the directional light: the shadow map the surface pass compares
-// against. Corners are fetched like in surface.wgsl (non-indexed draw, 3 per triangle).
+// against. Drawn indexed with `corners` as the index buffer, so the vertex index is the
+// vertex (the surface pass draws non-indexed and fetches corners itself).
 
 struct Vertex {
     // xyz position, w the texton label (bit pattern)
@@ -11,10 +12,8 @@ struct Vertex {
 
 @group(0) @binding(0) var<uniform> light_view_proj: mat4x4<f32>;
 @group(0) @binding(1) var<storage, read> vertices: array<Vertex>;
-@group(0) @binding(2) var<storage, read> corners: array<u32>;
 
 @vertex
-fn vs_shadow(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let v = corners[i];
+fn vs_shadow(@builtin(vertex_index) v: u32) -> @builtin(position) vec4<f32> {
     return light_view_proj * vec4<f32>(vertices[v].pos_label.xyz, 1.0);
 }

@@ -43,9 +43,17 @@ struct Blend {
 @group(0) @binding(4) var images: texture_2d_array<f32>;
 @group(0) @binding(5) var shadow_map: texture_depth_2d;
 @group(0) @binding(6) var shadow_sampler: sampler_comparison;
+// per image: layer, then the texel origin of its tile (AtlasLayout::place)
+@group(0) @binding(7) var<storage, read> places: array<vec4<i32>>;
+// Vertex mode: each vertex's colour, written once per vertex by cs_vertex_colours (binding 1)
+// and read per corner by vs_surface (binding 0), the same buffer.
+@group(1) @binding(0) var<storage, read> vertex_colours: array<vec4<f32>>;
+@group(1) @binding(1) var<storage, read_write> vertex_colours_out: array<vec4<f32>>;
 
 struct Varyings {
-    @builtin(position) clip: vec4<f32>,
+    // invariant: the depth pre-pass (vs_depth) must produce the same depth bit for bit, since
+    // this pass only shades fragments whose depth equals the one the pre-pass kept
+    @invariant @builtin(position) clip: vec4<f32>,
     // perspective-correct barycentric weights of the triangle's corners
     @location(0) bary: vec3<f32>,
     @location(1) @interpolate(flat) triangle: u32,
@@ -60,27 +68,45 @@ fn edge(i: i32, n: i32) -> i32 {
     return clamp(i, 0, n - 1);
 }
 
-fn fetch(image: u32, x: i32, y: i32) -> vec3<f32> {
+// Where a bilinear lookup at uv reads in any one image: the two columns and rows (already
+// wrapped or clamped, Material::edge) and the weights between them. The same for all 16
+// images of a corner, so it is computed once per corner, not once per texel fetched
+// (integer division is slow on software rasterisers, which run it lane by lane).
+struct Footprint {
+    x: vec2<i32>,
+    y: vec2<i32>,
+    f: vec2<f32>,
+};
+
+fn footprint(uv: vec2<f32>) -> Footprint {
     let w = i32(u.atlas.x);
     let h = i32(u.atlas.y);
-    let tile = image % u.atlas.w;
-    let origin = vec2<i32>(i32(tile % u.atlas.z) * w, i32(tile / u.atlas.z) * h);
-    let at = origin + vec2<i32>(edge(x, w), edge(y, h));
-    return textureLoad(images, at, i32(image / u.atlas.w), 0).rgb;
-}
-
-// Material::texel: bilinear, integers are texel centres.
-fn texel(image: u32, uv: vec2<f32>) -> vec3<f32> {
     let f0 = floor(uv);
-    let f = uv - f0;
     let x0 = i32(f0.x);
     let y0 = i32(f0.y);
-    if f.x == 0.0 && f.y == 0.0 {
-        return fetch(image, x0, y0);
+    var out: Footprint;
+    out.x = vec2<i32>(edge(x0, w), edge(x0 + 1, w));
+    out.y = vec2<i32>(edge(y0, h), edge(y0 + 1, h));
+    out.f = uv - f0;
+    return out;
+}
+
+// Material::texel: bilinear, integers are texel centres; image's tile from the table of
+// places (AtlasLayout::place) rather than divisions.
+fn texel(image: u32, at: Footprint) -> vec3<f32> {
+    let place = places[image];
+    let o = place.yz;
+    let layer = place.x;
+    let a = textureLoad(images, o + vec2<i32>(at.x.x, at.y.x), layer, 0).rgb;
+    if at.f.x == 0.0 && at.f.y == 0.0 {
+        return a;
     }
-    let top = mix(fetch(image, x0, y0), fetch(image, x0 + 1, y0), f.x);
-    let bottom = mix(fetch(image, x0, y0 + 1), fetch(image, x0 + 1, y0 + 1), f.x);
-    return mix(top, bottom, f.y);
+    let b = textureLoad(images, o + vec2<i32>(at.x.y, at.y.x), layer, 0).rgb;
+    let c = textureLoad(images, o + vec2<i32>(at.x.x, at.y.y), layer, 0).rgb;
+    let d = textureLoad(images, o + vec2<i32>(at.x.y, at.y.y), layer, 0).rgb;
+    let top = mix(a, b, at.f.x);
+    let bottom = mix(c, d, at.f.x);
+    return mix(top, bottom, at.f.y);
 }
 
 // A colour per texton label, for the false-colour display.
@@ -96,11 +122,12 @@ fn shade(v: u32, uv: vec2<f32>) -> vec3<f32> {
     if u.flags.y == 1u {
         return label_colour(bitcast<u32>(vertices[v].pos_label.w)) * blends[v].weight[0];
     }
+    let at = footprint(uv);
     var c = vec3<f32>(0.0);
     for (var k = 0u; k < 16u; k++) {
         let w = blends[v].weight[k];
         if w != 0.0 {
-            c += w * texel(blends[v].image[k], uv);
+            c += w * texel(blends[v].image[k], at);
         }
     }
     return c;
@@ -141,19 +168,53 @@ fn vertex_colour(v: u32) -> vec3<f32> {
     return shade(v, uv_of(v)) * step(0.5, light_reaches(position(v), n));
 }
 
+// The camera's clip position of vertex v: the one expression both vs_depth and vs_surface use.
+fn clip_of(v: u32) -> vec4<f32> {
+    return u.view_proj * vec4<f32>(position(v), 1.0);
+}
+
+struct DepthOnly {
+    @invariant @builtin(position) clip: vec4<f32>,
+};
+
+// The depth pre-pass: only the nearest depth per pixel, so that fs_surface then runs once
+// per pixel instead of once per overlapping fragment. Drawn indexed (the index buffer is
+// `corners`), so v is the vertex itself and shared corners can be shaded once.
+@vertex
+fn vs_depth(@builtin(vertex_index) v: u32) -> DepthOnly {
+    var out: DepthOnly;
+    out.clip = clip_of(v);
+    return out;
+}
+
 @vertex
 fn vs_surface(@builtin(vertex_index) i: u32) -> Varyings {
     let v = corners[i];
     var out: Varyings;
-    out.clip = u.view_proj * vec4<f32>(position(v), 1.0);
+    out.clip = clip_of(v);
     let k = i % 3u;
     out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
     out.triangle = i / 3u;
     out.colour = vec3<f32>(0.0);
     if u.flags.x == 0u {
-        out.colour = vertex_colour(v);
+        out.colour = vertex_colours[v].rgb;
     }
     return out;
+}
+
+// Vertex mode: vertex_colour of every vertex once, rather than in vs_surface once per corner
+// (about 6 corners a vertex, each 16 bilinear lookups and a shadow test). Dispatched as
+// rows of `num_workgroups.x` groups of 64.
+@compute @workgroup_size(64)
+fn cs_vertex_colours(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let v = id.y * groups.x * 64u + id.x;
+    if v >= arrayLength(&vertices) {
+        return;
+    }
+    vertex_colours_out[v] = vec4<f32>(vertex_colour(v), 1.0);
 }
 
 // Scene::predict_uv: the corner's coordinate plus the offset to p in its tangent frame.

@@ -1,4 +1,4 @@
-//! The scene on the GPU and the two passes that draw it: buffers (vertices, corners,
+//! The scene on the GPU and the passes that draw it: buffers (vertices, corners,
 //! blends, uniforms), the shadow map, bind groups, and the per-frame uploads.
 
 use super::atlas::{self, AtlasLayout};
@@ -61,12 +61,24 @@ pub const SHADOW_MAP_SIZE: u32 = 2048;
 /// Everything the passes need that lives on the GPU.
 pub struct Passes {
     shadow_pipeline: wgpu::RenderPipeline,
+    depth_pipeline: wgpu::RenderPipeline,
     surface_pipeline: wgpu::RenderPipeline,
+    colour_pipeline: wgpu::ComputePipeline,
     shadow_bindings: wgpu::BindGroup,
     surface_bindings: wgpu::BindGroup,
+    /// The vertex colours as the surface pass reads them and as the compute pass writes them.
+    colours_read: wgpu::BindGroup,
+    colours_write: wgpu::BindGroup,
+    vertex_count: u32,
+    /// Whether the last [`Passes::prepare`] was for vertex mode (then `encode` computes the
+    /// vertex colours first).
+    vertex_mode: bool,
     uniforms: wgpu::Buffer,
     blends: wgpu::Buffer,
     shadow_map: wgpu::TextureView,
+    /// The triangles' corners, 3 per triangle: a storage buffer for the surface pass, the
+    /// index buffer of the depth-only passes.
+    corners: wgpu::Buffer,
     corner_count: u32,
     layout: AtlasLayout,
     tileable: bool,
@@ -105,9 +117,22 @@ impl Passes {
                 dimension: Some(wgpu::TextureViewDimension::D2Array),
                 ..Default::default()
             });
+        let places: Vec<[i32; 4]> = (0..material.len() as u32)
+            .map(|i| {
+                let (layer, x, y) = layout.place(i);
+                [layer as i32, x as i32, y as i32, 0]
+            })
+            .collect();
+        let places = storage(device, "image places", bytemuck::cast_slice(&places));
         let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
-        let corner_buffer = storage(device, "corners", bytemuck::cast_slice(&corners));
+        // also the index buffer of the depth-only passes
+        let corner_buffer = buffer(
+            device,
+            "corners",
+            bytemuck::cast_slice(&corners),
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDEX,
+        );
         let blends = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("blends"),
             size: blend_bytes.max(4),
@@ -128,6 +153,22 @@ impl Passes {
             compare: Some(wgpu::CompareFunction::LessEqual),
             ..Default::default()
         });
+        let vertex_colours = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vertex colours"),
+            size: (scene.mesh.vertex_count() as u64 * 16).max(16),
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let (colours_read_layout, colours_write_layout) = pipeline::vertex_colour_layouts(device);
+        let colour_group = |layout, binding| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vertex colours"),
+                layout,
+                entries: &[buffer_entry(binding, &vertex_colours)],
+            })
+        };
+        let colours_read = colour_group(&colours_read_layout, 0);
+        let colours_write = colour_group(&colours_write_layout, 1);
         let surface_layout = pipeline::bind_group_layout(device);
         let shadow_layout = pipeline::shadow_bind_group_layout(device);
         let buffers = [&uniforms, &vertices, &corner_buffer, &blends];
@@ -145,23 +186,31 @@ impl Passes {
                     resource: wgpu::BindingResource::TextureView(&shadow_map),
                 },
                 wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(&sampler) },
+                buffer_entry(7, &places),
             ],
         });
         let shadow_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shadow bindings"),
             layout: &shadow_layout,
-            entries: &[buffer_entry(0, buffers[0]), buffer_entry(1, buffers[1]), buffer_entry(2, buffers[2])],
+            entries: &[buffer_entry(0, buffers[0]), buffer_entry(1, buffers[1])],
         });
         let (lo, hi) = scene.mesh.bounds();
         Ok(Passes {
             shadow_pipeline: pipeline::shadow(device, &shadow_layout),
-            surface_pipeline: pipeline::surface(device, &surface_layout, format),
+            depth_pipeline: pipeline::depth_prepass(device, &surface_layout),
+            surface_pipeline: pipeline::surface(device, &surface_layout, &colours_read_layout, format),
+            colour_pipeline: pipeline::vertex_colours(device, &surface_layout, &colours_write_layout),
             shadow_bindings,
             surface_bindings,
+            colours_read,
+            colours_write,
+            vertex_count: scene.mesh.vertex_count() as u32,
+            vertex_mode: false,
             uniforms,
             blends,
             shadow_map,
             corner_count: corners.len() as u32,
+            corners: corner_buffer,
             layout,
             tileable: material.tileable,
             texel: scene.texel,
@@ -170,11 +219,12 @@ impl Passes {
     }
 
     /// Writes this frame's blends (one per vertex) and uniforms.
-    pub fn prepare(&self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
+    pub fn prepare(&mut self, queue: &wgpu::Queue, shot: &Shot, blends: &[Blend16], settings: FrameSettings) {
         let gpu: Vec<GpuBlend> =
             blends.iter().map(|b| GpuBlend { image: b.image, weight: b.weight }).collect();
         queue.write_buffer(&self.blends, 0, bytemuck::cast_slice(&gpu));
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&self.uniforms_for(shot, settings)));
+        self.vertex_mode = settings.mode == Mode::Vertex;
     }
 
     fn uniforms_for(&self, shot: &Shot, settings: FrameSettings) -> Uniforms {
@@ -215,7 +265,8 @@ impl Passes {
         }
     }
 
-    /// Records the shadow pass and the surface pass into `target` (cleared to `clear`).
+    /// Records the shadow pass, the camera's depth pre-pass into `depth` and the surface pass
+    /// into `target` (cleared to `clear`).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -232,7 +283,33 @@ impl Passes {
             });
             pass.set_pipeline(&self.shadow_pipeline);
             pass.set_bind_group(0, &self.shadow_bindings, &[]);
-            pass.draw(0..self.corner_count, 0..1);
+            pass.set_index_buffer(self.corners.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.corner_count, 0, 0..1);
+        }
+        if self.vertex_mode && self.vertex_count > 0 {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vertex colours"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.colour_pipeline);
+            pass.set_bind_group(0, &self.surface_bindings, &[]);
+            pass.set_bind_group(1, &self.colours_write, &[]);
+            // rows of at most 65535 groups of 64 (the least limit on a dispatch's side)
+            let groups = self.vertex_count.div_ceil(64);
+            let row = groups.min(65535);
+            pass.dispatch_workgroups(row, groups.div_ceil(row), 1);
+        }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("depth pre-pass"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(depth_attachment(depth)),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.depth_pipeline);
+            pass.set_bind_group(0, &self.surface_bindings, &[]);
+            pass.set_index_buffer(self.corners.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.corner_count, 0, 0..1);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("surface pass"),
@@ -242,11 +319,17 @@ impl Passes {
                 resolve_target: None,
                 ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
             })],
-            depth_stencil_attachment: Some(depth_attachment(depth)),
+            // the pre-pass's depths, read only: nothing after this pass needs them
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Discard }),
+                stencil_ops: None,
+            }),
             ..Default::default()
         });
         pass.set_pipeline(&self.surface_pipeline);
         pass.set_bind_group(0, &self.surface_bindings, &[]);
+        pass.set_bind_group(1, &self.colours_read, &[]);
         pass.draw(0..self.corner_count, 0..1);
     }
 }
@@ -268,12 +351,16 @@ fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    buffer(device, label, bytes, wgpu::BufferUsages::STORAGE)
+}
+
+fn buffer(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
     // An empty binding is invalid; a mesh always has triangles, but stay safe.
     let bytes = if bytes.is_empty() { &[0u8; 4][..] } else { bytes };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytes,
-        usage: wgpu::BufferUsages::STORAGE,
+        usage,
     })
 }
 

@@ -1,13 +1,13 @@
-//! The two render pipelines (depth-only shadow pass from the light, surface pass from the
-//! camera) and the one bind group layout they share.
+//! The render pipelines (depth-only shadow pass from the light; depth pre-pass and surface
+//! pass from the camera) and the bind group layouts they use.
 
 /// Depth format of the shadow map and of the camera's depth buffer.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first three bindings).
+/// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first two bindings).
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     use wgpu::{BindingType as B, ShaderStages as S};
-    let both = S::VERTEX | S::FRAGMENT;
+    let both = S::VERTEX | S::FRAGMENT | S::COMPUTE;
     let storage = B::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only: true },
         has_dynamic_offset: false,
@@ -45,8 +45,30 @@ pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
                 },
             ),
             entry(6, B::Sampler(wgpu::SamplerBindingType::Comparison)),
+            entry(7, storage),
         ],
     })
+}
+
+/// The layouts of `surface.wgsl`'s group 1, the vertex colours: read by the surface pass
+/// (binding 0), written by the vertex-colour compute pass (binding 1).
+pub fn vertex_colour_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
+    let layout = |binding, visibility, read_only| {
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vertex colours"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        })
+    };
+    (layout(0, wgpu::ShaderStages::VERTEX, true), layout(1, wgpu::ShaderStages::COMPUTE, false))
 }
 
 /// The layout of `shadow.wgsl`'s group 0.
@@ -75,16 +97,37 @@ pub fn shadow_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout 
                 },
             ),
             entry(1, storage),
-            entry(2, storage),
         ],
     })
 }
 
 fn layout(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::PipelineLayout {
+    groups_layout(device, &[bindings])
+}
+
+fn groups_layout(device: &wgpu::Device, groups: &[&wgpu::BindGroupLayout]) -> wgpu::PipelineLayout {
+    let groups: Vec<_> = groups.iter().map(|g| Some(*g)).collect();
     device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
-        bind_group_layouts: &[Some(bindings)],
+        bind_group_layouts: &groups,
         immediate_size: 0,
+    })
+}
+
+/// Vertex mode's per-vertex colours (`cs_vertex_colours`), run before the camera passes.
+pub fn vertex_colours(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    colours: &wgpu::BindGroupLayout,
+) -> wgpu::ComputePipeline {
+    let module = surface_module(device);
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("vertex colours"),
+        layout: Some(&groups_layout(device, &[bindings, colours])),
+        module: &module,
+        entry_point: Some("cs_vertex_colours"),
+        compilation_options: Default::default(),
+        cache: None,
     })
 }
 
@@ -119,20 +162,56 @@ pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::
     })
 }
 
+fn surface_module(device: &wgpu::Device) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("surface.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
+    })
+}
+
+/// The camera's depth only (`vs_depth`, the same clip position as `vs_surface`), so that the
+/// surface pass shades each pixel once: on a software rasteriser the fragment shader's 48
+/// bilinear lookups are most of a frame, and overlapping fragments multiplied them.
+pub fn depth_prepass(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    let module = surface_module(device);
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("depth pre-pass"),
+        layout: Some(&layout(device, bindings)),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_depth"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 /// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
 /// window's format in the viewer); no culling, the shader blackens back faces as the CPU does.
+/// It runs after [`depth_prepass`] and shades only the fragments at the depth that pass kept
+/// (`Equal`, no depth writes; `@invariant` positions make the depths identical).
 pub fn surface(
     device: &wgpu::Device,
     bindings: &wgpu::BindGroupLayout,
+    colours: &wgpu::BindGroupLayout,
     format: wgpu::TextureFormat,
 ) -> wgpu::RenderPipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("surface.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/surface.wgsl").into()),
-    });
+    let module = surface_module(device);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("surface pass"),
-        layout: Some(&layout(device, bindings)),
+        layout: Some(&groups_layout(device, &[bindings, colours])),
         vertex: wgpu::VertexState {
             module: &module,
             entry_point: Some("vs_surface"),
@@ -142,8 +221,8 @@ pub fn surface(
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Equal),
             stencil: Default::default(),
             bias: Default::default(),
         }),
