@@ -70,6 +70,15 @@ impl GpuRenderer {
     /// window. Fails with one line if there is none.
     pub fn headless(scene: Scene, material: Material, size: (u32, u32)) -> Result<GpuRenderer> {
         let gpu = Gpu::headless()?;
+        let max = gpu.device.limits().max_texture_dimension_2d;
+        if size.0 > max || size.1 > max {
+            return Err(crate::Error::invalid(format!(
+                "--size {}x{}: {} renders at most {max}x{max}",
+                size.0,
+                size.1,
+                gpu.name()
+            )));
+        }
         let passes = Passes::new(&gpu.device, &gpu.queue, &scene, &material, TARGET_FORMAT)?;
         let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("frame"),
