@@ -110,9 +110,7 @@ impl Scene {
             })
             .collect()
     }
-}
 
-impl Scene {
     /// The sample itself on a flat quad in the world's XZ plane (normal +Y, s = +X, rows
     /// running towards +Z), one model unit per texel, its map the identity: what `--compare`
     /// puts beside each frame.
