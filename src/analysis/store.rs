@@ -285,13 +285,5 @@ pub fn false_colours(embedding: &ndarray::Array2<f32>) -> Vec<[u8; 3]> {
 
 /// Writes 8-bit RGB as PNG.
 pub fn save_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
-    image::save_buffer_with_format(
-        path,
-        rgb,
-        width as u32,
-        height as u32,
-        image::ExtendedColorType::Rgb8,
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+    crate::btf::image_io::write_png8(path, width, height, rgb, image::ExtendedColorType::Rgb8)
 }

@@ -152,15 +152,19 @@ pub fn write_exr(path: &Path, width: usize, height: usize, data: &[f16]) -> Resu
 /// Writes linear RGB as an 8-bit sRGB PNG (values clamped to [0, 1]).
 pub fn write_png(path: &Path, width: usize, height: usize, data: &[f16]) -> Result<()> {
     let bytes: Vec<u8> = data.iter().map(|v| linear_to_srgb8(v.to_f32())).collect();
-    image::save_buffer_with_format(
-        path,
-        &bytes,
-        width as u32,
-        height as u32,
-        image::ExtendedColorType::Rgb8,
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
+    write_png8(path, width, height, &bytes, image::ExtendedColorType::Rgb8)
+}
+
+/// Writes 8-bit pixels (`Rgb8` or `Rgba8`, rows top to bottom) as PNG.
+pub fn write_png8(
+    path: &Path,
+    width: usize,
+    height: usize,
+    bytes: &[u8],
+    colour: image::ExtendedColorType,
+) -> Result<()> {
+    image::save_buffer_with_format(path, bytes, width as u32, height as u32, colour, image::ImageFormat::Png)
+        .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
 }
 
 /// The sRGB transfer function's inverse.

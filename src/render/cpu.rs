@@ -170,8 +170,7 @@ pub fn render_sequence(
     let quad = if compare { Some(Scene::sample_quad(material)?) } else { None };
     let quad_tracer = quad.as_ref().map(|q| Tracer::new(&q.mesh));
     let shots = plan.shots(scene.mesh.bounds());
-    let quad_shots =
-        quad.as_ref().map(|q| super::ShotPlan { orbit: plan.orbit, ..*plan }.shots(q.mesh.bounds()));
+    let quad_shots = quad.as_ref().map(|q| plan.shots(q.mesh.bounds()));
     progress.start("rendering", shots.len() as u64);
     let mut seconds = 0.0;
     for (i, shot) in shots.iter().enumerate() {

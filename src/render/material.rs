@@ -238,7 +238,7 @@ impl Material {
 
     /// The colour of a blend at texel (x, y) exactly (inside the sample): the vertex-mode
     /// lookup, without the bilinear weights.
-    pub fn shade_texel(&self, blend: &Blend16, x: usize, y: usize) -> Vec3 {
+    fn shade_texel(&self, blend: &Blend16, x: usize, y: usize) -> Vec3 {
         let (plane, offset) = (self.width * self.height * 3, (y * self.width + x) * 3);
         let mut c = Vec3::ZERO;
         for k in 0..16 {
@@ -251,13 +251,17 @@ impl Material {
     }
 
     /// The texel (x, y) that (u, v) names exactly, if it is a texel centre inside the sample.
-    pub fn texel_at(&self, u: f32, v: f32) -> Option<(usize, usize)> {
+    fn texel_at(&self, u: f32, v: f32) -> Option<(usize, usize)> {
         let inside = u >= 0.0 && v >= 0.0 && u < self.width as f32 && v < self.height as f32;
         (inside && u.fract() == 0.0 && v.fract() == 0.0).then_some((u as usize, v as usize))
     }
 
     /// The colour of a blend at (u, v).
     pub fn shade(&self, blend: &Blend16, u: f32, v: f32) -> Vec3 {
+        // Vertex coordinates are texel centres: one read per image instead of four taps.
+        if let Some((x, y)) = self.texel_at(u, v) {
+            return self.shade_texel(blend, x, y);
+        }
         let taps = self.taps(u, v);
         let mut c = Vec3::ZERO;
         for k in 0..16 {

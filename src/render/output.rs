@@ -2,7 +2,7 @@
 //! RGBA) or `.png` (8-bit sRGB RGBA), and `contact.png`, a sheet of every frame. The
 //! directory is staged and renamed into place when the last file is written.
 
-use crate::btf::image_io::linear_to_srgb8;
+use crate::btf::image_io::{linear_to_srgb8, write_png8};
 use crate::fsutil::StagedDir;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -69,7 +69,9 @@ impl Frame {
                     .to_file(path)
                     .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))
             }
-            FrameFormat::Png => save_rgba8(path, self.width, self.height, &self.to_srgb8()),
+            FrameFormat::Png => {
+                write_png8(path, self.width, self.height, &self.to_srgb8(), image::ExtendedColorType::Rgba8)
+            }
         }
     }
 
@@ -94,18 +96,6 @@ impl Frame {
         }
         out
     }
-}
-
-fn save_rgba8(path: &Path, width: usize, height: usize, bytes: &[u8]) -> Result<()> {
-    image::save_buffer_with_format(
-        path,
-        bytes,
-        width as u32,
-        height as u32,
-        image::ExtendedColorType::Rgba8,
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| Error::format(path, format!("cannot write PNG: {e}")))
 }
 
 /// File format of the frames.

@@ -170,10 +170,7 @@ impl Relighter {
                 let local = Vec3::new(light.dot(s), light.dot(t), light.dot(n));
                 let Some(nl) = material.light_weights(local) else { return Vec3::ZERO };
                 let blend = material.combine(&r.views, &nl, local.z);
-                match material.texel_at(r.uv.x, r.uv.y) {
-                    Some((x, y)) => material.shade_texel(&blend, x, y),
-                    None => material.shade(&blend, r.uv.x, r.uv.y),
-                }
+                material.shade(&blend, r.uv.x, r.uv.y)
             })
             .collect();
         let mut colours = vec![Vec3::ZERO; in_order.len()];

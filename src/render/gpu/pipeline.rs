@@ -138,12 +138,24 @@ pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::
         label: Some("shadow.wgsl"),
         source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/shadow.wgsl").into()),
     });
+    let bias = wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 };
+    depth_only(device, bindings, (&module, "vs_shadow"), "shadow pass", bias)
+}
+
+/// A pipeline that writes depth only (less-than test), from vertex entry point `entry`.
+fn depth_only(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    (module, entry): (&wgpu::ShaderModule, &str),
+    label: &str,
+    bias: wgpu::DepthBiasState,
+) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("shadow pass"),
+        label: Some(label),
         layout: Some(&layout(device, bindings)),
         vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_shadow"),
+            module,
+            entry_point: Some(entry),
             compilation_options: Default::default(),
             buffers: &[],
         },
@@ -153,7 +165,7 @@ pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::
             depth_write_enabled: Some(true),
             depth_compare: Some(wgpu::CompareFunction::Less),
             stencil: Default::default(),
-            bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
+            bias,
         }),
         multisample: Default::default(),
         fragment: None,
@@ -174,28 +186,7 @@ fn surface_module(device: &wgpu::Device) -> wgpu::ShaderModule {
 /// bilinear lookups are most of a frame, and overlapping fragments multiplied them.
 pub fn depth_prepass(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
     let module = surface_module(device);
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("depth pre-pass"),
-        layout: Some(&layout(device, bindings)),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_depth"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: None,
-        multiview_mask: None,
-        cache: None,
-    })
+    depth_only(device, bindings, (&module, "vs_depth"), "depth pre-pass", Default::default())
 }
 
 /// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
