@@ -30,5 +30,7 @@ pub mod progress;
 pub mod render;
 pub mod seeded;
 pub mod synth;
+#[doc(hidden)]
+pub mod testdata;
 
 pub use error::{Error, Result};
