@@ -118,7 +118,7 @@ pub fn build_pyramid(
             &mut targets[l],
             &coarse.mesh,
             &coarse.frames,
-            &coarse_templates,
+            coarse_templates,
             fine.texel,
         )?;
     }
