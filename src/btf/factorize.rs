@@ -88,10 +88,9 @@ pub fn factorize(
     progress.start("factorizing channels", 3);
     for (c, error) in relative_error.iter_mut().enumerate() {
         let m = channel_matrix(btf, &grid.order, model, c)?;
-        let total: f64 = m.iter().map(|&v| v as f64 * v as f64).sum();
-        let factors = truncated_svd(m.view(), components, seed.wrapping_add(c as u64));
-        let kept: f64 = factors.singular_values.iter().map(|&s| s as f64 * s as f64).sum();
-        *error = if total > 0.0 { ((total - kept).max(0.0) / total).sqrt() } else { 0.0 };
+        let total = energy(m.view());
+        let (factors, discarded) = truncated_svd(m.view(), components, seed.wrapping_add(c as u64));
+        *error = if total > 0.0 { (discarded / total).sqrt() } else { 0.0 };
         channels.push(factors);
         progress.advance(1);
     }
@@ -112,31 +111,53 @@ fn channel_matrix(btf: &Btf, order: &[usize], model: ColourModel, c: usize) -> R
     Ok(m)
 }
 
-/// The `k` leading singular triplets of `m`: U (rows × k, orthonormal) and σ·V (cols × k).
-pub fn truncated_svd(m: ArrayView2<f32>, k: usize, seed: u64) -> ChannelFactors {
+/// The `k` leading singular triplets of `m`: U (rows × k, orthonormal) and σ·V (cols × k),
+/// with the energy Σ σ² of the components left out.
+pub fn truncated_svd(m: ArrayView2<f32>, k: usize, seed: u64) -> (ChannelFactors, f64) {
     let (rows, cols) = m.dim();
     let k = k.min(rows).min(cols).max(1);
     if rows.min(cols) <= EXACT_LIMIT {
         if rows <= cols {
-            return from_range(None, m, k);
+            return from_range(None, m, k, 0.0);
         }
         // Factorize the transpose and swap the sides back.
-        return swap_sides(from_range(None, m.t(), k));
+        let (t, discarded) = from_range(None, m.t(), k, 0.0);
+        return (swap_sides(t), discarded);
     }
     let basis = range_finder(m, (k + OVERSAMPLING).min(rows.min(cols)), seed);
     let b = basis.t().dot(&m);
-    from_range(Some(&basis), b.view(), k)
+    // The energy outside the basis' span is discarded too.
+    let outside = (energy(m) - energy(b.view())).max(0.0);
+    from_range(Some(&basis), b.view(), k, outside)
+}
+
+/// Σ v² in f64.
+fn energy(m: ArrayView2<f32>) -> f64 {
+    m.iter().map(|&v| v as f64 * v as f64).sum()
+}
+
+/// B·Bᵀ in f64, a block of columns at a time (so that small eigenvalues, and with them the
+/// discarded energy, keep their precision).
+fn gram(b: ArrayView2<f32>) -> DMatrix<f64> {
+    let l = b.nrows();
+    let mut g = Array2::<f64>::zeros((l, l));
+    for start in (0..b.ncols()).step_by(4096) {
+        let end = (start + 4096).min(b.ncols());
+        let block = b.slice(ndarray::s![.., start..end]).mapv(|v| v as f64);
+        g += &block.dot(&block.t());
+    }
+    DMatrix::from_fn(l, l, |i, j| (g[[i, j]] + g[[j, i]]) / 2.0)
 }
 
 /// With `basis` Q (orthonormal, rows × l) and B = Qᵀ·M (or Q = I and B = M when `basis`
-/// is `None`): the eigenvectors W of B·Bᵀ give U = Q·W and σ·V = Bᵀ·W.
-fn from_range(basis: Option<&Array2<f32>>, b: ArrayView2<f32>, k: usize) -> ChannelFactors {
-    let gram = b.dot(&b.t());
-    let l = gram.nrows();
-    let g = DMatrix::from_fn(l, l, |i, j| (gram[[i, j]] as f64 + gram[[j, i]] as f64) / 2.0);
-    let eigen = SymmetricEigen::new(g);
+/// is `None`): the eigenvectors W of B·Bᵀ give U = Q·W and σ·V = Bᵀ·W. Returns the factors
+/// and the discarded energy: the eigenvalues left out plus `outside`.
+fn from_range(basis: Option<&Array2<f32>>, b: ArrayView2<f32>, k: usize, outside: f64) -> (ChannelFactors, f64) {
+    let eigen = SymmetricEigen::new(gram(b));
+    let l = eigen.eigenvalues.len();
     let mut order: Vec<usize> = (0..l).collect();
     order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let discarded: f64 = order[k..].iter().map(|&j| eigen.eigenvalues[j].max(0.0)).sum();
     let w = Array2::from_shape_fn((l, k), |(i, j)| eigen.eigenvectors[(i, order[j])] as f32);
     let u = match basis {
         Some(q) => q.dot(&w),
@@ -144,7 +165,7 @@ fn from_range(basis: Option<&Array2<f32>>, b: ArrayView2<f32>, k: usize) -> Chan
     };
     let sxv = b.t().dot(&w);
     let singular_values = sxv.axis_iter(Axis(1)).map(|col| col.dot(&col).sqrt()).collect();
-    ChannelFactors { singular_values, u, sxv }
+    (ChannelFactors { singular_values, u, sxv }, discarded + outside)
 }
 
 /// From the factors of Mᵀ (U′, σ·V′) to those of M: U = V′ = (σ·V′)/σ and σ·V = σ·U′.
@@ -237,7 +258,7 @@ mod tests {
         // Exact on both orientations, randomized on a tall one.
         for (rows, cols) in [(40, 300), (300, 40), (700, 600)] {
             let m = low_rank(rows, cols, 8);
-            let f = truncated_svd(m.view(), 3, 7);
+            let (f, discarded) = truncated_svd(m.view(), 3, 7);
             let want = [1.0, 0.5, 0.25];
             for (s, w) in f.singular_values.iter().zip(want) {
                 assert!((s - w).abs() < 1e-4, "{rows}x{cols}: {:?}", f.singular_values);
@@ -255,13 +276,16 @@ mod tests {
             let predicted = (discarded / total).sqrt();
             let got = residual(&m, &f);
             assert!((got - predicted).abs() < 1e-3 * predicted + 1e-6, "{rows}x{cols}: {got} vs {predicted}");
+            let reported = (discarded / energy(m.view())).sqrt();
+            assert!((reported - predicted).abs() < 1e-3 * predicted, "{rows}x{cols}: {reported} vs {predicted}");
         }
     }
 
     #[test]
     fn full_rank_reconstructs_exactly() {
         let m = low_rank(30, 50, 30);
-        let f = truncated_svd(m.view(), 30, 0);
+        let (f, discarded) = truncated_svd(m.view(), 30, 0);
         assert!(residual(&m, &f) < 1e-5);
+        assert!(discarded < 1e-12, "{discarded}");
     }
 }

@@ -6,6 +6,7 @@
 
 pub mod archive;
 pub mod colour;
+pub mod convert;
 pub mod directions;
 pub mod factorize;
 pub mod gen;
@@ -19,7 +20,7 @@ pub mod write;
 pub use directions::{Direction, DirectionPair, DirectionSet};
 pub use load::{load, LoadOptions};
 pub use source::ImageSource;
-pub use write::{write_stack, ImageFormat};
+pub use write::{write_images, write_stack, ImageFormat};
 
 use crate::{Error, Result};
 use half::f16;
