@@ -54,22 +54,37 @@ impl ZipStack {
             .collect();
         members.sort_by(|a, b| a.1.cmp(&b.1));
         if members.is_empty() {
-            return Err(Error::format(path, "the archive holds no images named like tl015 pl000 tv000 pv000.jpg"));
+            return Err(Error::format(
+                path,
+                "the archive holds no images named like tl015 pl000 tv000 pv000.jpg",
+            ));
         }
         let pairs = members
             .iter()
-            .map(|(_, name)| pair_from_name(Path::new(name)).map_err(|e| member_error(path, name, message_of(e))))
+            .map(|(_, name)| {
+                pair_from_name(Path::new(name)).map_err(|e| member_error(path, name, message_of(e)))
+            })
             .collect::<Result<Vec<_>>>()?;
         if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
             return Err(Error::format(
                 path,
-                format!("members '{}' and '{}' have the same light and view directions", members[a].1, members[b].1),
+                format!(
+                    "members '{}' and '{}' have the same light and view directions",
+                    members[a].1, members[b].1
+                ),
             ));
         }
         let first = read_member(path, &mut archive, &members[0])?;
         let crop = resolve_crop(path, crop, first.width, first.height)?;
         let size = (first.width, first.height);
-        Ok(ZipStack { path: path.to_path_buf(), members, pairs, crop, size, archives: Mutex::new(vec![archive]) })
+        Ok(ZipStack {
+            path: path.to_path_buf(),
+            members,
+            pairs,
+            crop,
+            size,
+            archives: Mutex::new(vec![archive]),
+        })
     }
 
     fn with_archive<T>(&self, f: impl FnOnce(&mut ZipArchive<File>) -> Result<T>) -> Result<T> {
@@ -109,7 +124,10 @@ impl ImageSource for ZipStack {
             return Err(member_error(
                 &self.path,
                 &member.1,
-                format!("{}x{} pixels, but the first image is {w}x{h}; all images of a stack must have one size", image.width, image.height),
+                format!(
+                    "{}x{} pixels, but the first image is {w}x{h}; all images of a stack must have one size",
+                    image.width, image.height
+                ),
             ));
         }
         let cropped = crop_image(&image, self.crop).map_err(|m| member_error(&self.path, &member.1, m))?;
@@ -146,12 +164,22 @@ fn is_image_member(name: &str) -> bool {
 }
 
 /// Reads and decodes one member as linear RGB.
-fn read_member(path: &Path, archive: &mut ZipArchive<File>, (index, name): &(usize, String)) -> Result<RgbImage> {
-    let mut file = archive.by_index(*index).map_err(|e| member_error(path, name, format!("cannot open: {e}")))?;
+fn read_member(
+    path: &Path,
+    archive: &mut ZipArchive<File>,
+    (index, name): &(usize, String),
+) -> Result<RgbImage> {
+    let mut file =
+        archive.by_index(*index).map_err(|e| member_error(path, name, format!("cannot open: {e}")))?;
     if file.size() > MAX_MEMBER_BYTES {
-        return Err(member_error(path, name, format!("{} bytes uncompressed is too large for an image", file.size())));
+        return Err(member_error(
+            path,
+            name,
+            format!("{} bytes uncompressed is too large for an image", file.size()),
+        ));
     }
-    let mut bytes = Vec::with_capacity(file.size() as usize);
+    // The declared size is not trusted for the allocation: the vector grows as data arrive.
+    let mut bytes = Vec::with_capacity(file.size().min(1 << 20) as usize);
     file.read_to_end(&mut bytes).map_err(|e| member_error(path, name, format!("cannot read: {e}")))?;
     decode_image_bytes(&bytes, name).map_err(|m| member_error(path, name, m))
 }
@@ -169,8 +197,19 @@ pub fn decode_image_bytes(bytes: &[u8], name: &str) -> Result<RgbImage, String> 
         Some("exr") => image::ImageFormat::OpenExr,
         _ => return Err("not a JPEG, PNG, EXR or HDR image".into()),
     };
-    let decoded = image::load_from_memory_with_format(bytes, format).map_err(|e| format!("cannot decode image: {e}"))?;
+    let decoded = decode_with_limits(bytes, format)?;
     Ok(to_linear(decoded, format == image::ImageFormat::OpenExr))
+}
+
+/// Decodes with a memory limit tied to the member's size, so a small member cannot make
+/// the decoder allocate for a huge size its header claims (at most 64 MiB or 1024 × the
+/// member).
+fn decode_with_limits(bytes: &[u8], format: image::ImageFormat) -> Result<image::DynamicImage, String> {
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some((bytes.len() as u64).saturating_mul(1024).max(64 << 20));
+    reader.limits(limits);
+    reader.decode().map_err(|e| format!("cannot decode image: {e}"))
 }
 
 fn to_linear(decoded: image::DynamicImage, linear: bool) -> RgbImage {
@@ -178,7 +217,12 @@ fn to_linear(decoded: image::DynamicImage, linear: bool) -> RgbImage {
     let data: Vec<f16> = if linear {
         decoded.to_rgb32f().into_raw().into_iter().map(f16::from_f32).collect()
     } else if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
-        decoded.to_rgb16().into_raw().into_iter().map(|v| f16::from_f32(srgb_to_linear(v as f32 / 65535.0))).collect()
+        decoded
+            .to_rgb16()
+            .into_raw()
+            .into_iter()
+            .map(|v| f16::from_f32(srgb_to_linear(v as f32 / 65535.0)))
+            .collect()
     } else {
         let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
         decoded.to_rgb8().into_raw().into_iter().map(|v| lut[v as usize]).collect()
@@ -191,8 +235,7 @@ fn to_linear(decoded: image::DynamicImage, linear: bool) -> RgbImage {
 /// down.
 fn decode_hdr(bytes: &[u8]) -> Result<RgbImage, String> {
     let (fixed, flip) = standard_hdr_orientation(bytes);
-    let decoded = image::load_from_memory_with_format(&fixed, image::ImageFormat::Hdr)
-        .map_err(|e| format!("cannot decode image: {e}"))?;
+    let decoded = decode_with_limits(&fixed, image::ImageFormat::Hdr)?;
     let mut image = to_linear(decoded, true);
     if flip {
         let row = image.width * 3;

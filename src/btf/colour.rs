@@ -65,7 +65,9 @@ impl ColourModel {
             10 => ColourModel::LogYLogUv,
             11 => ColourModel::LogYUvOverY,
             12 => ColourModel::LogRgb,
-            other => return Err(format!("not supported yet: colour model {other} (btflib defines 0-6 and 9-12)")),
+            other => {
+                return Err(format!("not supported yet: colour model {other} (btflib defines 0-6 and 9-12)"))
+            }
         })
     }
 
@@ -195,7 +197,8 @@ const D50_WHITE: [f64; 3] = [0.964_2, 1.0, 0.824_9];
 fn lab_d50_to_rgb([l, a, b]: [f64; 3]) -> [f64; 3] {
     let fy = (l + 16.0) / 116.0;
     let f = [fy + a / 500.0, fy, fy - b / 200.0];
-    let inv = |t: f64| if t > 6.0 / 29.0 { t * t * t } else { 3.0 * (6.0f64 / 29.0).powi(2) * (t - 4.0 / 29.0) };
+    let inv =
+        |t: f64| if t > 6.0 / 29.0 { t * t * t } else { 3.0 * (6.0f64 / 29.0).powi(2) * (t - 4.0 / 29.0) };
     let xyz = [0, 1, 2].map(|i| D50_WHITE[i] * inv(f[i]));
     let linear = mul(&invert(&SRGB_TO_XYZ_D50), xyz);
     linear.map(|v| {
@@ -291,7 +294,8 @@ mod tests {
     #[test]
     fn every_btflib_model_id_is_known_and_others_are_not() {
         for id in [0, 1, 2, 3, 4, 5, 6, 9, 10, 11, 12] {
-            let m = ColourModel::from_id(id, [0.0; 3], [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).unwrap();
+            let m = ColourModel::from_id(id, [0.0; 3], [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+                .unwrap();
             assert_eq!(m.id(), id);
             assert!(m.to_rgb([0.1, 0.2, 0.3]).iter().all(|v| v.is_finite()));
         }
@@ -300,7 +304,10 @@ mod tests {
             assert!(e.contains("not supported yet"), "{e}");
         }
         // PCA: identity transform plus mean is a shift.
-        let pca = ColourModel::Pca { mean: [1.0, 2.0, 3.0], transform: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] };
+        let pca = ColourModel::Pca {
+            mean: [1.0, 2.0, 3.0],
+            transform: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        };
         assert_eq!(pca.to_rgb([0.5, 0.5, 0.5]), [1.5, 2.5, 3.5]);
         // Lab: white (L = 100) is white.
         let white = ColourModel::Lab.to_rgb([100.0, 0.0, 0.0]);

@@ -65,7 +65,12 @@ pub struct ToBtfReport {
 }
 
 /// Writes `stack` as a DFMF file at `path` and measures the file against the stack.
-pub fn to_btf(stack: &Btf, path: &Path, options: &ToBtfOptions, progress: &dyn Progress) -> Result<ToBtfReport> {
+pub fn to_btf(
+    stack: &Btf,
+    path: &Path,
+    options: &ToBtfOptions,
+    progress: &dyn Progress,
+) -> Result<ToBtfReport> {
     let f = factorize(stack, options.model, options.components, options.seed, progress)?;
     let dfmf = DfmfOptions {
         model: options.model,
@@ -74,8 +79,12 @@ pub fn to_btf(stack: &Btf, path: &Path, options: &ToBtfOptions, progress: &dyn P
         rotations: options.rotations.clone(),
         measurement_setup: format!("btfsynth {} convert", env!("CARGO_PKG_VERSION")),
     };
-    let geometry =
-        DfmfGeometry { views: &f.grid.views, lights: &f.grid.lights, width: stack.width(), height: stack.height() };
+    let geometry = DfmfGeometry {
+        views: &f.grid.views,
+        lights: &f.grid.lights,
+        width: stack.width(),
+        height: stack.height(),
+    };
     write_dfmf(path, &geometry, &f.channels, &dfmf)?;
     let relative_error = measure(stack, &f, path, progress)?;
     let file_bytes = std::fs::metadata(path).map_err(|e| crate::Error::io(path, e))?.len();

@@ -34,12 +34,8 @@ pub struct Grid {
 /// Arranges the stack's images by view and light; fails unless it holds every pair.
 pub fn grid(btf: &Btf) -> Result<Grid> {
     let (views, lights) = (btf.views(), btf.lights());
-    let index: HashMap<_, usize> = btf
-        .pairs()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| ((p.light.key(), p.view.key()), i))
-        .collect();
+    let index: HashMap<_, usize> =
+        btf.pairs().iter().enumerate().map(|(i, p)| ((p.light.key(), p.view.key()), i)).collect();
     let mut order = Vec::with_capacity(views.len() * lights.len());
     for view in &views {
         for light in &lights {
@@ -152,7 +148,12 @@ fn gram(b: ArrayView2<f32>) -> DMatrix<f64> {
 /// With `basis` Q (orthonormal, rows × l) and B = Qᵀ·M (or Q = I and B = M when `basis`
 /// is `None`): the eigenvectors W of B·Bᵀ give U = Q·W and σ·V = Bᵀ·W. Returns the factors
 /// and the discarded energy: the eigenvalues left out plus `outside`.
-fn from_range(basis: Option<&Array2<f32>>, b: ArrayView2<f32>, k: usize, outside: f64) -> (ChannelFactors, f64) {
+fn from_range(
+    basis: Option<&Array2<f32>>,
+    b: ArrayView2<f32>,
+    k: usize,
+    outside: f64,
+) -> (ChannelFactors, f64) {
     let eigen = SymmetricEigen::new(gram(b));
     let l = eigen.eigenvalues.len();
     let mut order: Vec<usize> = (0..l).collect();
@@ -237,8 +238,12 @@ mod tests {
 
     /// A rows × cols matrix of rank `rank` with singular values 1, ½, ¼, …
     fn low_rank(rows: usize, cols: usize, rank: usize) -> Array2<f32> {
-        let u = orthonormalize(Array2::from_shape_fn((rows, rank), |(i, j)| seeded::normal(1, i as i64, j as i64)));
-        let v = orthonormalize(Array2::from_shape_fn((cols, rank), |(i, j)| seeded::normal(2, i as i64, j as i64)));
+        let u = orthonormalize(Array2::from_shape_fn((rows, rank), |(i, j)| {
+            seeded::normal(1, i as i64, j as i64)
+        }));
+        let v = orthonormalize(Array2::from_shape_fn((cols, rank), |(i, j)| {
+            seeded::normal(2, i as i64, j as i64)
+        }));
         let mut s = Array2::<f32>::zeros((rank, rank));
         for r in 0..rank {
             s[[r, r]] = 0.5f32.powi(r as i32);
@@ -271,13 +276,16 @@ mod tests {
                 }
             }
             // The residual is what the discarded values 1/8, 1/16, … predict.
-            let discarded: f64 = (3..8).map(|r| 0.25f64.powi(r)).sum();
+            let planted: f64 = (3..8).map(|r| 0.25f64.powi(r)).sum();
             let total: f64 = (0..8).map(|r| 0.25f64.powi(r)).sum();
-            let predicted = (discarded / total).sqrt();
+            let predicted = (planted / total).sqrt();
             let got = residual(&m, &f);
             assert!((got - predicted).abs() < 1e-3 * predicted + 1e-6, "{rows}x{cols}: {got} vs {predicted}");
             let reported = (discarded / energy(m.view())).sqrt();
-            assert!((reported - predicted).abs() < 1e-3 * predicted, "{rows}x{cols}: {reported} vs {predicted}");
+            assert!(
+                (reported - predicted).abs() < 1e-3 * predicted,
+                "{rows}x{cols}: {reported} vs {predicted}"
+            );
         }
     }
 

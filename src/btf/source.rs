@@ -117,7 +117,10 @@ pub fn resolve_crop(path: &Path, crop: Option<Crop>, width: usize, height: usize
     if !fits {
         return Err(Error::format(
             path,
-            format!("crop {},{},{},{} does not fit in the {width}x{height} sample", c.x, c.y, c.width, c.height),
+            format!(
+                "crop {},{},{},{} does not fit in the {width}x{height} sample",
+                c.x, c.y, c.width, c.height
+            ),
         ));
     }
     Ok(c)

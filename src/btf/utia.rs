@@ -39,7 +39,8 @@ fn is_exr(file: &Path) -> bool {
 
 /// True if the image's folder is named like `tv030_pv090` (UTIA's per-view folders).
 pub fn in_utia_view_folder(file: &Path) -> bool {
-    let Some(folder) = file.parent().and_then(|p| p.file_name()).map(|n| n.to_string_lossy().to_ascii_lowercase())
+    let Some(folder) =
+        file.parent().and_then(|p| p.file_name()).map(|n| n.to_string_lossy().to_ascii_lowercase())
     else {
         return false;
     };

@@ -93,7 +93,8 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
                 "converted_from": args.input.display().to_string(),
                 "crop": args.crop.map(|c| [c.x, c.y, c.width, c.height]),
             });
-            let written = write_images(stack.as_ref(), &args.output, args.format, Some(source), args.force, bars)?;
+            let written =
+                write_images(stack.as_ref(), &args.output, args.format, Some(source), args.force, bars)?;
             eprintln!(
                 "wrote {} images of {}x{} to {} in {:.1} s",
                 stack.pairs().len(),

@@ -121,16 +121,41 @@ fn print_stack(path: &Path, stack: &Btf) {
 fn print_bonn_file(file: &crate::btf::ubo2014::BonnBtf) {
     let d = file.describe();
     let (views, lights) = file.views_and_lights();
-    println!("{}: Bonn {} BTF file ({})", file.path().display(), d["format"].as_str().unwrap_or(""), file.signature());
-    println!("  size    {} x {} pixels, {} images ({views} views × {lights} lights)", file.width(), file.height(), file.pairs().len());
+    println!(
+        "{}: Bonn {} BTF file ({})",
+        file.path().display(),
+        d["format"].as_str().unwrap_or(""),
+        file.signature()
+    );
+    println!(
+        "  size    {} x {} pixels, {} images ({views} views × {lights} lights)",
+        file.width(),
+        file.height(),
+        file.pairs().len()
+    );
     if let Some(components) = d["components"].as_array() {
         let k: Vec<String> = components.iter().map(|c| c.to_string()).collect();
-        println!("  factors {} components per channel, {} scalars", k.join(", "), d["scalar"].as_str().unwrap_or(""));
-        println!("  colour  model {} ({})", d["colour_model"]["id"], d["colour_model"]["name"].as_str().unwrap_or(""));
+        println!(
+            "  factors {} components per channel, {} scalars",
+            k.join(", "),
+            d["scalar"].as_str().unwrap_or("")
+        );
+        println!(
+            "  colour  model {} ({})",
+            d["colour_model"]["id"],
+            d["colour_model"]["name"].as_str().unwrap_or("")
+        );
     }
     let meta = file.meta();
-    println!("  header  version {}, setup {:?}, sensor {:?}, light {:?}", meta.version, meta.measurement_setup, meta.image_sensor, meta.light_source);
-    println!("  file    {:.1} MiB; decoded whole it would take {:.1} MiB as f16", d["file_bytes"].as_f64().unwrap_or(0.0) / (1u64 << 20) as f64, (file.pairs().len() * file.width() * file.height() * 6) as f64 / (1u64 << 20) as f64);
+    println!(
+        "  header  version {}, setup {:?}, sensor {:?}, light {:?}",
+        meta.version, meta.measurement_setup, meta.image_sensor, meta.light_source
+    );
+    println!(
+        "  file    {:.1} MiB; decoded whole it would take {:.1} MiB as f16",
+        d["file_bytes"].as_f64().unwrap_or(0.0) / (1u64 << 20) as f64,
+        (file.pairs().len() * file.width() * file.height() * 6) as f64 / (1u64 << 20) as f64
+    );
 }
 
 fn max_theta(dirs: &[Direction]) -> f32 {

@@ -171,5 +171,6 @@ fn non_finite(path: &Path, p: usize, width: usize) -> Error {
 /// Texel indices `x + width·y` of a crop, rows top to bottom.
 fn crop_texels(width: usize, crop: Crop) -> impl Iterator<Item = usize> {
     let (x0, y0) = (crop.x as usize, crop.y as usize);
-    (y0..y0 + crop.height as usize).flat_map(move |y| (x0..x0 + crop.width as usize).map(move |x| x + width * y))
+    (y0..y0 + crop.height as usize)
+        .flat_map(move |y| (x0..x0 + crop.width as usize).map(move |x| x + width * y))
 }

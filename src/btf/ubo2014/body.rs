@@ -92,7 +92,13 @@ fn read_matrices(
     let mut matrix = |name: &str, n: u64| -> Result<Matrix> {
         let row_bytes = components as u64 * scalar.size();
         c.need(n, row_bytes, &format!("{name} ({n} × {components})"))?;
-        let m = Matrix { name: format!("channel {ch} {name}"), offset: c.pos(), rows: n, cols: components, scalar };
+        let m = Matrix {
+            name: format!("channel {ch} {name}"),
+            offset: c.pos(),
+            rows: n,
+            cols: components,
+            scalar,
+        };
         c.skip(m.bytes(), name)?;
         Ok(m)
     };

@@ -171,7 +171,9 @@ pub fn read_directions(c: &mut Cursor) -> Result<Directions> {
     }
     let lights = lights_per_view.unwrap_or(0) as usize;
     if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
-        return Err(c.error(format!("images {a} and {b} have the same light and view directions ({})", pairs[a])));
+        return Err(
+            c.error(format!("images {a} and {b} have the same light and view directions ({})", pairs[a]))
+        );
     }
     Ok(Directions { views: views as usize, lights, pairs })
 }

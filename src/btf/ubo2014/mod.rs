@@ -141,9 +141,10 @@ impl BonnBtf {
                     false => Vec::new(),
                 };
                 let body = match variant {
-                    Variant::Fmf { extended } => body::read_fmf(&mut c, &shape, extended)?,
-                    _ => body::read_dfmf(&mut c, &shape)?,
+                    Variant::Fmf { extended } => body::read_fmf(&mut c, &shape, extended),
+                    _ => body::read_dfmf(&mut c, &shape),
                 };
+                let body = body.map_err(|e| after_rotations(e, signature, rotations.len()))?;
                 (rotations, Body::Factors(body))
             }
         };
@@ -247,7 +248,8 @@ impl BonnBtf {
                         start..start + crop.width as u64
                     })
                     .collect();
-                let factors = Factors::read(&f.channels, self.pairs.len() as u64, &rows, &self.bytes, &self.path)?;
+                let factors =
+                    Factors::read(&f.channels, self.pairs.len() as u64, &rows, &self.bytes, &self.path)?;
                 Decoder::Factors { factors, model: f.model, log_encoded: f.log_encoded }
             }
             Body::Bdi(b) => Decoder::Bdi(b),
@@ -275,6 +277,20 @@ impl BonnBtf {
                 false => 1.0,
             })
             .collect()
+    }
+}
+
+/// A body that does not parse may be misread because the rotation count before it is
+/// wrong; the message says so, naming the block.
+fn after_rotations(e: Error, signature: &str, count: usize) -> Error {
+    match e {
+        Error::Format { path, message } if header::has_rotation_block(signature) => Error::Format {
+            path,
+            message: format!(
+                "{message} (after a rotation block of {count} matrices: if that count is wrong, everything after it is misread)"
+            ),
+        },
+        other => other,
     }
 }
 

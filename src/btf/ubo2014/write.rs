@@ -48,7 +48,12 @@ pub struct DfmfGeometry<'a> {
 }
 
 /// Writes a DFMF file atomically (a temporary sibling renamed into place).
-pub fn write_dfmf(path: &Path, geometry: &DfmfGeometry, channels: &[ChannelFactors], options: &DfmfOptions) -> Result<()> {
+pub fn write_dfmf(
+    path: &Path,
+    geometry: &DfmfGeometry,
+    channels: &[ChannelFactors],
+    options: &DfmfOptions,
+) -> Result<()> {
     let images = geometry.views.len() * geometry.lights.len();
     let pixels = geometry.width * geometry.height;
     for (c, ch) in channels.iter().enumerate() {
@@ -116,7 +121,9 @@ fn write_meta(w: &mut impl Write, options: &DfmfOptions) -> std::io::Result<()> 
         _ => ["R", "G", "B"],
     };
     let mut xml = String::new();
-    let size = |xml: &str| 4 + 4 + 240 + 4 + 12 + 4 + 4 + xml.len() + 4 + names.iter().map(|n| 4 + n.len()).sum::<usize>();
+    let size = |xml: &str| {
+        4 + 4 + 240 + 4 + 12 + 4 + 4 + xml.len() + 4 + names.iter().map(|n| 4 + n.len()).sum::<usize>()
+    };
     // Without the rotation block the byte after the signature must not read as its `R`.
     if !options.rotation_block && size(&xml) as u8 == b'R' {
         xml.push(' ');
