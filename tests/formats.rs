@@ -462,12 +462,15 @@ fn bdi_by_hand_full_and_sparse() {
         let path = tmp_file(dir.path(), "a.bdi", &bytes.b);
         let stack = decode(&path);
         for i in 0..spec.images() {
-            for p in 0..12 {
-                let got = stack.rgb(i, p % 4, p / 4);
-                for c in 0..3 {
-                    let want = if stored[p] { f16::from_f32(bdi_value(p, i, c)).to_f32() } else { 0.0 };
-                    assert_eq!(got[c], want, "sparse {sparse}: image {i} pixel {p}");
-                }
+            for (p, &is_stored) in stored.iter().enumerate() {
+                let want: [f32; 3] = std::array::from_fn(|c| {
+                    if is_stored {
+                        f16::from_f32(bdi_value(p, i, c)).to_f32()
+                    } else {
+                        0.0
+                    }
+                });
+                assert_eq!(stack.rgb(i, p % 4, p / 4), want, "sparse {sparse}: image {i} pixel {p}");
             }
         }
         // One image alone, and a crop, decode the same values.
@@ -643,7 +646,7 @@ fn incomplete_stacks_cannot_become_dfmf() {
         rotations: vec![],
         seed: 0,
     };
-    let e = to_btf(&partial, &dir.path().join("x.btf"), &options, &Silent).err().expect("refused");
+    let e = to_btf(&partial, &dir.path().join("x.btf"), &options, &Silent).expect_err("refused");
     assert!(e.to_string().contains("every view × light pair"), "{e}");
     assert!(!dir.path().join("x.btf").exists());
 }
@@ -842,7 +845,8 @@ fn ubo2003_zip_reads_in_place_like_the_same_folder() {
 fn zip_with_a_bad_member_names_it() {
     let dir = tempfile::tempdir().unwrap();
     let good = png_bytes(dir.path(), 1);
-    let cases: Vec<(Vec<(String, Vec<u8>)>, &str)> = vec![
+    type Members = Vec<(String, Vec<u8>)>;
+    let cases: Vec<(Members, &str)> = vec![
         (
             vec![
                 ("tl000 pl000 tv000 pv000.png".into(), good.clone()),

@@ -28,7 +28,7 @@ impl Bytes {
     }
 
     /// The file's length in bytes.
-    pub fn len(&self) -> u64 {
+    pub fn size(&self) -> u64 {
         match self {
             Bytes::File { len, .. } => *len,
             Bytes::Memory(b) => b.len() as u64,
@@ -83,7 +83,7 @@ impl<'a> Cursor<'a> {
 
     /// Bytes left after the current offset.
     pub fn remaining(&self) -> u64 {
-        self.bytes.len().saturating_sub(self.pos)
+        self.bytes.size().saturating_sub(self.pos)
     }
 
     /// An error about the current section, naming the file.

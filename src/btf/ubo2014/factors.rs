@@ -176,7 +176,7 @@ impl Factors {
         let mut image = Vec::with_capacity(layouts.len());
         let mut pixel = Vec::with_capacity(layouts.len());
         for layout in layouts {
-            image.push(layout.image.read(bytes, path, &[0..images])?);
+            image.push(layout.image.read(bytes, path, std::slice::from_ref(&(0..images)))?);
             pixel.push(layout.pixel.read(bytes, path, pixel_ranges)?);
         }
         Ok(Factors { image, pixel })

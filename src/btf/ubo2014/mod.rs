@@ -87,7 +87,7 @@ impl BonnBtf {
     }
 
     fn parse(path: &Path, bytes: Bytes) -> Result<Self> {
-        let mut start = vec![0u8; bytes.len().min(10) as usize];
+        let mut start = vec![0u8; bytes.size().min(10) as usize];
         bytes.read_at(path, 0, &mut start)?;
         let candidates = header::candidate_signatures(&start);
         let Some(&(first_signature, _)) = candidates.first() else {
@@ -194,7 +194,7 @@ impl BonnBtf {
 
     /// What `btfsynth info --json` prints about the file.
     pub fn describe(&self) -> serde_json::Value {
-        let file_bytes = self.bytes.len();
+        let file_bytes = self.bytes.size();
         let mut d = serde_json::json!({
             "kind": "btf-file",
             "path": self.path.display().to_string(),
