@@ -89,13 +89,15 @@ pub fn open(path: &Path, crop: Option<Crop>) -> Result<Option<Box<dyn ImageSourc
 /// the check is skipped).
 pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Result<()> {
     let needed = (images as u128 * per_image as u128 * 2).min(u64::MAX as u128) as u64;
-    match available_memory() {
-        Some(available) if needed > available / 10 * 8 => Err(Error::format(
+    // Leave a fifth of the memory for everything else the process and the machine need.
+    let budget = available_memory().map(|a| a / 10 * 8);
+    match budget {
+        Some(budget) if needed > budget => Err(Error::format(
             path,
             format!(
-                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB of memory available; decode a part with --crop x,y,w,h",
+                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget (80% of the memory available); decode a part with --crop x,y,w,h",
                 needed as f64 / (1u64 << 30) as f64,
-                available as f64 / (1u64 << 30) as f64
+                budget as f64 / (1u64 << 30) as f64
             ),
         )),
         _ => Ok(()),
