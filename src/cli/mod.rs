@@ -1,6 +1,7 @@
 //! Argument parsing, progress display and error printing: the only terminal code.
 
 mod analyze;
+mod convert;
 mod demo;
 mod eval;
 mod gen;
@@ -52,6 +53,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Render a surface map on the GPU (wgpu): an interactive window, or --headless frames.
     View(view::ViewArgs),
+    /// Convert a stack: to a folder of EXR/PNG images, or to a DFMF .btf file (--to btf).
+    Convert(convert::ConvertArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -81,6 +84,7 @@ pub fn main() -> ExitCode {
         Command::Remesh(args) => remesh::run(args, &bars),
         Command::Render(args) => render::run(args, &bars),
         Command::View(args) => view::run(args, &bars),
+        Command::Convert(args) => convert::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };
