@@ -25,6 +25,7 @@ pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod fsutil;
+pub mod maps;
 pub mod mesh;
 pub mod progress;
 pub mod render;
