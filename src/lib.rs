@@ -24,6 +24,7 @@ pub mod btf;
 pub mod cli;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod fsutil;
 pub mod maps;
 pub mod mesh;

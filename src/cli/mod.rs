@@ -3,6 +3,7 @@
 mod analyze;
 mod demo;
 mod eval;
+mod export;
 mod gen;
 mod info;
 mod progress;
@@ -56,6 +57,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
     Demo(demo::DemoArgs),
+    /// Write a surface map on the original mesh as glTF (.glb/.gltf) with baked textures.
+    Export(export::ExportArgs),
 }
 
 /// Runs the CLI; every error becomes one line on stderr and exit code 1.
@@ -83,6 +86,7 @@ pub fn main() -> ExitCode {
         Command::View(args) => view::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
+        Command::Export(args) => export::run(args, &bars),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -103,28 +103,30 @@ pub struct MaterialMap {
 }
 
 impl MaterialMap {
-    /// Reads `source` for a sample whose image is `size` (width, height) before `crop`
-    /// (x, y, w, h), and crops it the same way. A map of another size is an error naming it.
+    /// Reads `source` for a sample whose image is `size` (width, height; `None` if unknown)
+    /// before `crop` (x, y, w, h), and crops it the same way. A map of another size, or one
+    /// the crop does not fit, is an error naming it.
     pub fn load(
         source: &MapSource,
-        size: (usize, usize),
+        size: Option<(usize, usize)>,
         crop: Option<(usize, usize, usize, usize)>,
     ) -> Result<MaterialMap> {
         let image = MapImage::read(&source.path)?;
-        if (image.width, image.height) != size {
+        let (w, h) = (image.width, image.height);
+        let kind = source.kind.name();
+        if let Some((sw, sh)) = size.filter(|&s| s != (w, h)) {
             return Err(Error::format(
                 &source.path,
-                format!(
-                    "the {} map is {}x{} pixels but the sample is {}x{}; maps must have the sample's size",
-                    source.kind.name(),
-                    image.width,
-                    image.height,
-                    size.0,
-                    size.1
-                ),
+                format!("the {kind} map is {w}x{h} pixels but the sample is {sw}x{sh}; maps must have the sample's size"),
             ));
         }
         let image = match crop {
+            Some((x, y, cw, ch)) if x + cw > w || y + ch > h => {
+                return Err(Error::format(
+                    &source.path,
+                    format!("the crop {x},{y},{cw},{ch} does not fit in the {w}x{h} {kind} map"),
+                ))
+            }
             Some(c) => image.crop(c),
             None => image,
         };

@@ -9,6 +9,7 @@
 //! | `textons.png` | the labels in the analysis' false colours |
 //! | `uv.png` | x and y as red and green, scaled to the sample size |
 //! | `result.png` | the sample image closest to normal view and light, copied through `uv` |
+//! | `result_<kind>.png\|exr` | each material map of the analysis copied through `uv` ([`crate::maps`]) |
 
 use super::engine::State;
 use super::target::grid_levels;
@@ -109,6 +110,7 @@ pub fn write_plane(
         })
         .collect();
     save_png(&dir.join("result.png"), w, h, &copied)?;
+    crate::maps::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
 
     let manifest = serde_json::json!({
         "kind": "plane",
