@@ -9,7 +9,7 @@ writes `render.png` (Cycles on the CPU, a sun and a dim sky) and exits non-zero 
 1. the imported material's Base Color comes from an image texture (not a flat colour), and
 2. the rendered object is textured: its high-frequency energy (mean squared difference of
    neighbouring pixels inside the object) is several times that of the same render with
-   the texture disconnected, at a small size so the check is quick.
+   every texture disconnected, at a small size so the check is quick.
 """
 
 import argparse
@@ -141,7 +141,8 @@ def main():
     small = 192
     check = args.render + ".check.png"
     textured, covered = detail(render(check, small, 64))
-    tree.links.remove(link)
+    for unused in [l for l in tree.links if l.from_node.type == "TEX_IMAGE"]:
+        tree.links.remove(unused)  # every texture: base colour, normals, roughness
     flat, _ = detail(render(check, small, 64))
     os.remove(check)
     ratio = textured / max(flat, 1e-12)

@@ -203,7 +203,10 @@ fn an_identity_surface_map_bakes_the_sample_itself() {
     std::fs::create_dir(dir.path().join("again")).expect("dir");
     let again = dir.path().join("again/quad.glb");
     run(&["-q", "--threads", "1", "export", s(&surface), "-o", s(&again), "--size", &N.to_string()]);
-    assert!(std::fs::read(&out).expect("first") == std::fs::read(&again).expect("second"), "not deterministic");
+    assert!(
+        std::fs::read(&out).expect("first") == std::fs::read(&again).expect("second"),
+        "not deterministic"
+    );
 }
 
 #[test]

@@ -31,6 +31,9 @@ pub struct Document {
     views: Vec<Value>,
     accessors: Vec<Value>,
     images: Vec<ImageData>,
+    /// Files that are not glTF images (EXR), each with the path of the object inside the
+    /// material that gets its reference.
+    attachments: Vec<(ImageData, Vec<String>)>,
     textures: Vec<Value>,
     mesh: Option<Value>,
     material: Value,
@@ -94,6 +97,14 @@ impl Document {
         self.images.len() - 1
     }
 
+    /// Stores a file glTF has no image type for (an EXR) with the document: inside a
+    /// `.glb` as a buffer view, beside a `.gltf` as a file. The material's object at `at`
+    /// (keys from the material down, e.g. `["extras", "btfsynth", "coordinates"]`) gets
+    /// `"bufferView"` and `"mimeType"`, or `"uri"`.
+    pub fn attachment(&mut self, data: ImageData, at: &[&str]) {
+        self.attachments.push((data, at.iter().map(|k| k.to_string()).collect()));
+    }
+
     /// A texture showing image `image` with the document's one sampler (trilinear, clamped
     /// at the atlas' edges); returns its index in `textures`.
     pub fn texture(&mut self, image: usize) -> usize {
@@ -135,6 +146,11 @@ impl Document {
                 json!({"name": image.name, "mimeType": image.mime, "bufferView": view})
             })
             .collect();
+        for (data, at) in std::mem::take(&mut self.attachments) {
+            let view = self.view(&data.bytes, None);
+            let reference = json!({"bufferView": view, "mimeType": data.mime});
+            self.refer(&at, reference);
+        }
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
@@ -171,12 +187,26 @@ impl Document {
                 entry
             })
             .collect();
+        for (data, at) in std::mem::take(&mut self.attachments) {
+            let file = format!("{stem}_{}.{}", data.name, data.extension);
+            self.refer(&at, json!({"uri": uri_escape(&file), "mimeType": data.mime}));
+            files.push((file, data.bytes));
+        }
         let bin_name = format!("{stem}.bin");
         let buffer = json!({"byteLength": self.bin.len(), "uri": uri_escape(&bin_name)});
         let text = serde_json::to_vec_pretty(&self.json(buffer, image_json)).unwrap_or_default();
         files.push((bin_name, std::mem::take(&mut self.bin)));
         files.push((format!("{stem}.gltf"), text));
         files
+    }
+
+    /// Merges `reference` into the material's object at `at`.
+    fn refer(&mut self, at: &[String], reference: Value) {
+        let target = at.iter().fold(&mut self.material, |node, key| &mut node[key.as_str()]);
+        match (target.as_object_mut(), reference) {
+            (Some(object), Value::Object(fields)) => object.extend(fields),
+            (_, reference) => *target = reference,
+        }
     }
 
     fn json(&self, buffer: Value, images: Vec<Value>) -> Value {
@@ -227,6 +257,9 @@ mod tests {
         attributes.insert("POSITION".into(), position.into());
         doc.primitive(attributes, indices);
         doc.image(ImageData { name: "x".into(), mime: "image/png", extension: "png", bytes: vec![1, 2, 3] });
+        doc.material(json!({"extras": {"a": {"note": "kept"}}}));
+        let exr = ImageData { name: "y".into(), mime: "image/x-exr", extension: "exr", bytes: vec![4, 5] };
+        doc.attachment(exr, &["extras", "a"]);
         doc
     }
 
@@ -246,14 +279,20 @@ mod tests {
         let view = &json["bufferViews"][json["images"][0]["bufferView"].as_u64().unwrap() as usize];
         let start = 20 + json_len + 8 + view["byteOffset"].as_u64().unwrap() as usize;
         assert_eq!(&glb[start..start + 3], &[1, 2, 3]);
+        let a = &json["materials"][0]["extras"]["a"];
+        assert_eq!((&a["note"], &a["mimeType"]), (&json!("kept"), &json!("image/x-exr")));
+        let view = &json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+        let start = 20 + json_len + 8 + view["byteOffset"].as_u64().unwrap() as usize;
+        assert_eq!(&glb[start..start + 2], &[4, 5]);
     }
 
     #[test]
     fn gltf_files_reference_each_other_by_escaped_uri() {
         let files = triangle().to_gltf_files("my model");
         let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
-        assert_eq!(names, ["my model_x.png", "my model.bin", "my model.gltf"]);
-        let json: Value = serde_json::from_slice(&files[2].1).expect("JSON");
+        assert_eq!(names, ["my model_x.png", "my model_y.exr", "my model.bin", "my model.gltf"]);
+        let json: Value = serde_json::from_slice(&files[3].1).expect("JSON");
+        assert_eq!(json["materials"][0]["extras"]["a"]["uri"], "my%20model_y.exr");
         assert_eq!(json["images"][0]["uri"], "my%20model_x.png");
         assert_eq!(json["buffers"][0]["uri"], "my%20model.bin");
     }

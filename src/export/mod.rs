@@ -337,21 +337,23 @@ impl TexturedJob<'_> {
         if self.look.material.len() > 1 {
             let sample = (self.look.material.width(), self.look.material.height());
             let format = self.options.coordinates;
-            let image = document.image(textures::coordinate_image(
-                format,
-                (w, h),
-                &baked.coordinate,
-                &baked.covered,
-                sample,
-            )?);
+            let image =
+                textures::coordinate_image(format, (w, h), &baked.coordinate, &baked.covered, sample)?;
             extras["sampleCoordinates"] = json!({
-                "image": image, "sampleWidth": sample.0, "sampleHeight": sample.1,
+                "sampleWidth": sample.0, "sampleHeight": sample.1,
                 "tileable": self.look.material.tileable,
                 "encoding": match format {
                     CoordinateFormat::Png => "16-bit RGB PNG: u = R / 65535 * sampleWidth - 0.5, v = G / 65535 * sampleHeight - 0.5 (sample texels, centres at integers, v down rows); B = 1 where baked from a triangle, 0 in gutters",
                     CoordinateFormat::Exr => "float RGB EXR: R = u, G = v (sample texels, centres at integers, v down rows); B = 1 where baked from a triangle, 0 in gutters",
                 },
             });
+            match format {
+                // A PNG is a glTF image; an EXR is not, so it is attached by buffer view or URI.
+                CoordinateFormat::Png => extras["sampleCoordinates"]["image"] = document.image(image).into(),
+                CoordinateFormat::Exr => {
+                    document.attachment(image, &["extras", "btfsynth", "sampleCoordinates"]);
+                }
+            }
         }
         material["pbrMetallicRoughness"] = pbr;
         material["extras"] = json!({"btfsynth": extras});

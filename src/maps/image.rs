@@ -313,7 +313,7 @@ mod tests {
             let expected_names: Vec<String> = if depth.is_float() {
                 map.channels.clone()
             } else {
-                vec![channels.concat().chars().map(String::from).collect::<Vec<_>>()].concat()
+                channels.concat().chars().map(String::from).collect()
             };
             assert_eq!(back.channels, expected_names, "{depth:?}");
             assert_eq!((back.depth, back.width, back.height), (depth, 7, 5));
