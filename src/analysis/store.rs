@@ -107,7 +107,7 @@ pub fn write(
     write_with_maps(analysis, btf, (source_path, crop), &[], dir, overwrite)
 }
 
-/// [`write`], with material maps (already cropped like the sample) stored beside it.
+/// [`write()`], with material maps (already cropped like the sample) stored beside it.
 pub fn write_with_maps(
     analysis: &Analysis,
     btf: &Btf,

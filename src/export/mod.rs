@@ -7,7 +7,7 @@
 //!    ([`layout`]).
 //! 3. Every atlas texel near a triangle is mapped to its surface point ([`raster`]), the
 //!    nearest point of the synthesized surface gives a sample coordinate, and the BTF and the
-//!    material maps are looked up there ([`bake`]); gutters copy the nearest baked texel.
+//!    material maps are looked up there ([`bake`](mod@bake)); gutters copy the nearest baked texel.
 //! 4. The textures are encoded ([`textures`]) and written with the mesh as `.glb` or
 //!    `.gltf` + files ([`gltf`]), all or nothing.
 //!

@@ -1,7 +1,7 @@
 //! A mesh exactly as its file gives it, with its texture coordinates: what `export` writes
 //! back in the user's own UV layout.
 //!
-//! [`load`](super::load) welds, repairs and re-orients a mesh for synthesis, which would
+//! [`load`](super::load()) welds, repairs and re-orients a mesh for synthesis, which would
 //! lose the file's UV seams; this reader keeps the file's vertices, faces and UVs as they
 //! are and only validates them. Texture coordinates are read from OBJ `vt` (faces
 //! `f v/vt …`, relative indices included) and from PLY per-vertex `s t`, `texture_u
