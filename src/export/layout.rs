@@ -86,8 +86,8 @@ impl AtlasMesh {
             padding: options.padding,
             ..uvunwrap::Options::default()
         };
-        progress.start("unwrapping", 0);
-        let atlas = uvunwrap::generate(&[uvunwrap::MeshInput::new(&positions, &indices)], &unwrap_options)
+        let mesh = uvunwrap::MeshInput::new(&positions, &indices);
+        let atlas = uvunwrap::generate_with_progress(&[mesh], &unwrap_options, forward(progress))
             .map_err(|e| Error::invalid(format!("cannot generate a UV atlas: {e}")));
         progress.finish();
         let atlas = atlas?;
@@ -125,6 +125,33 @@ impl AtlasMesh {
                 0.5 * f64::from((b - a).perp_dot(c - a).abs())
             })
             .sum()
+    }
+}
+
+/// uvunwrap's progress reports as ours: a stage per unwrapping stage.
+fn forward(progress: &dyn Progress) -> impl Fn(uvunwrap::Progress) -> bool + Sync + '_ {
+    let last = std::sync::Mutex::new(None::<(uvunwrap::Stage, usize)>);
+    move |report| {
+        let Ok(mut last) = last.lock() else { return true };
+        let done = match *last {
+            Some((stage, done)) if stage == report.stage => done,
+            previous => {
+                if previous.is_some() {
+                    progress.finish();
+                }
+                let name = match report.stage {
+                    uvunwrap::Stage::Segmenting => "segmenting",
+                    uvunwrap::Stage::Parameterizing => "flattening",
+                    uvunwrap::Stage::Packing => "packing",
+                    _ => "unwrapping",
+                };
+                progress.start(name, report.total.unwrap_or(0) as u64);
+                0
+            }
+        };
+        progress.advance(report.done.saturating_sub(done) as u64);
+        *last = Some((report.stage, report.done));
+        true
     }
 }
 
