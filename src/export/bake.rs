@@ -52,7 +52,8 @@ pub fn bake_blend(material: &Material, light: Option<Direction>) -> Blend16 {
 pub struct MapLookup {
     /// What the map holds.
     pub kind: MapKind,
-    /// Whether the source stored integers (so the baked texture keeps 8 bits) and at which depth.
+    /// The depth the map was stored at (a slot texture is 8-bit only if every map behind
+    /// it is).
     pub depth: crate::maps::Depth,
     lookup: Material,
 }
