@@ -45,6 +45,9 @@ pub struct Manifest {
     pub timings_s: serde_json::Value,
     /// Peak resident memory of the process, if the platform reports it.
     pub peak_memory_bytes: Option<u64>,
+    /// Material maps stored beside the sample (`analyze --maps`; see [`crate::maps`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub maps: Vec<crate::maps::MapInfo>,
 }
 
 /// Where the stack came from.
@@ -108,6 +111,18 @@ pub fn write(
     dir: &Path,
     overwrite: bool,
 ) -> Result<PathBuf> {
+    write_with_maps(analysis, btf, (source_path, crop), &[], dir, overwrite)
+}
+
+/// [`write()`], with material maps (already cropped like the sample) stored beside it.
+pub fn write_with_maps(
+    analysis: &Analysis,
+    btf: &Btf,
+    (source_path, crop): (&Path, Option<[u32; 4]>),
+    maps: &[crate::maps::MaterialMap],
+    dir: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
     let staged = StagedDir::new(dir, overwrite)?;
     let out = staged.path();
     let (w, h) = (btf.width(), btf.height());
@@ -120,7 +135,8 @@ pub fn write(
         levels.push(write_level(out, l, level)?);
     }
     write_previews(out, analysis)?;
-    let manifest = manifest(analysis, btf, source_path, crop, levels);
+    let mut manifest = manifest(analysis, btf, source_path, crop, levels);
+    manifest.maps = crate::maps::store_maps(out, maps)?;
     let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
     write_file_atomic(&out.join(MANIFEST), json.as_bytes())?;
     staged.commit()
@@ -215,6 +231,7 @@ fn manifest(
             "knn": t.knn.as_secs_f64(), "total": t.total.as_secs_f64(),
         }),
         peak_memory_bytes: peak_memory_bytes(),
+        maps: Vec::new(),
     }
 }
 

@@ -4,8 +4,10 @@ use super::progress::Bars;
 use crate::analysis::filters::FilterBank;
 use crate::analysis::pipeline::{analyze, AnalysisParams};
 use crate::analysis::store;
+use crate::btf::image_io::is_image_path;
 use crate::btf::{load, Crop, LoadOptions};
 use crate::fsutil::check_target;
+use crate::maps::{self, MapSource, MaterialMap};
 use anyhow::Result;
 use std::path::PathBuf;
 
@@ -51,9 +53,38 @@ pub struct AnalyzeArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Material maps of the same patch, stored beside the sample at their own depth (8-bit,
+    /// 16-bit PNG or float EXR) and carried through synthesis: KIND=FILE pairs separated by
+    /// commas; kinds: normal, roughness, metallic, occlusion, height.
+    #[arg(long, value_name = "KIND=FILE,…", value_parser = parse_maps)]
+    maps: Option<MapList>,
     /// Replace the output directory if it exists.
     #[arg(long)]
     force: bool,
+}
+
+/// The `--maps` list as clap hands it over.
+#[derive(Clone, Debug)]
+struct MapList(Vec<MapSource>);
+
+fn parse_maps(s: &str) -> Result<MapList, String> {
+    maps::parse_map_list(s).map(MapList).map_err(|e| e.to_string())
+}
+
+/// The maps of `--maps`, checked against the stack and cropped like it.
+fn load_maps(args: &AnalyzeArgs, stack: &crate::btf::Btf) -> Result<Vec<MaterialMap>> {
+    let Some(MapList(sources)) = &args.maps else { return Ok(Vec::new()) };
+    // Maps match the uncropped image: known for a one-image stack, else only the crop's fit
+    // can be checked.
+    let size = match args.crop {
+        None => Some((stack.width(), stack.height())),
+        Some(_) if is_image_path(&args.stack) => {
+            image::image_dimensions(&args.stack).ok().map(|(w, h)| (w as usize, h as usize))
+        }
+        Some(_) => None,
+    };
+    let crop = args.crop.map(|c| (c.x as usize, c.y as usize, c.width as usize, c.height as usize));
+    Ok(sources.iter().map(|s| MaterialMap::load(s, size, crop)).collect::<crate::Result<_>>()?)
 }
 
 pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
@@ -75,9 +106,11 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         filters,
     };
     let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
+    let maps = load_maps(&args, &stack)?;
     let analysis = analyze(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
-    let written = store::write(&analysis, &stack, &args.stack, crop, &args.output, args.force)?;
+    let written =
+        store::write_with_maps(&analysis, &stack, (&args.stack, crop), &maps, &args.output, args.force)?;
     let t = &analysis.timings;
     let sizes: Vec<String> = analysis
         .levels
@@ -99,6 +132,11 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         written.display()
     );
     eprintln!("  levels    {}", sizes.join("; "));
+    if !maps.is_empty() {
+        let names: Vec<String> =
+            maps.iter().map(|m| format!("{} ({:?})", m.kind.name(), m.image.depth)).collect();
+        eprintln!("  maps      {}", names.join(", "));
+    }
     eprintln!(
         "  time      {:.1} s (selection {:.1}, filtering {:.1}, k-means {:.1}, Γ {:.1}, kNN {:.1})",
         t.total.as_secs_f64(),

@@ -4,6 +4,7 @@ mod analyze;
 mod convert;
 mod demo;
 mod eval;
+mod export;
 mod gen;
 mod info;
 mod progress;
@@ -59,6 +60,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
     Demo(demo::DemoArgs),
+    /// Write a surface map on the original mesh as glTF (.glb/.gltf) with baked textures.
+    Export(export::ExportArgs),
 }
 
 /// Runs the CLI; every error becomes one line on stderr and exit code 1.
@@ -87,6 +90,7 @@ pub fn main() -> ExitCode {
         Command::Convert(args) => convert::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
+        Command::Export(args) => export::run(args, &bars),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,6 +11,8 @@
 //! - [`remesh`]: isotropic remeshing to a target edge length or vertex count
 //!   (Botsch & Kobbelt 2004), which gives synthesis evenly spaced samples.
 //! - [`ply::write`](mod@ply::write): binary PLY output with named per-vertex properties.
+//! - [`textured`]: a mesh exactly as its file gives it, with its texture coordinates (for
+//!   `export`).
 //!
 //! ```no_run
 //! use btfsynth::mesh::{self, remesh};
@@ -33,6 +35,7 @@ pub mod off;
 pub mod ply;
 pub mod prepare;
 pub mod remesh;
+pub mod textured;
 pub mod topology;
 mod weld;
 

@@ -11,6 +11,7 @@
 //! | `result.png` | the sample image closest to normal view and light, copied through `uv` |
 //! | `result_tv…_pv…_tl…_pl….png` | the same under each shown view/light pair (see [`write_plane`]) |
 //! | `sample_tv…_pv…_tl…_pl….png` | the sample image of that pair, to compare with |
+//! | `result_<kind>.png\|exr` | each material map of the analysis copied through `uv` ([`crate::maps`]) |
 
 use super::engine::State;
 use super::target::grid_levels;
@@ -104,6 +105,7 @@ pub fn write_plane(
         )?;
         save_picture(&images.picture(probe.image), &dir.join(format!("sample_{tag}.png")))?;
     }
+    crate::maps::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
 
     let manifest = serde_json::json!({
         "kind": "plane",

@@ -151,6 +151,10 @@ pub fn write_surface_ply(
         "btfsynth surface".to_string(),
         format!("analysis {}", analysis.display()),
         format!("mesh {}", mesh.display()),
+        format!(
+            "mesh_absolute {}",
+            std::path::absolute(mesh).unwrap_or_else(|_| mesh.to_path_buf()).display()
+        ),
         format!("texel {}", level.texel),
         format!("params {params}"),
     ];
