@@ -1,11 +1,13 @@
 //! `btfsynth eval`: quality of a synthesized result against its sample.
 
 use super::progress::Bars;
+use super::shots::with_force_hint;
+use crate::analysis::store::verify_fingerprint;
 use crate::eval::{chi2, coherence, energy, Quality};
 use crate::synth::engine::State;
 use crate::synth::plane::{read_plane, MANIFEST};
 use crate::synth::surface::surface_level;
-use crate::synth::surface_map::read_surface_ply;
+use crate::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use crate::synth::target::{grid_levels, TargetLevel};
 use crate::synth::Sample;
 use anyhow::{bail, Result};
@@ -20,14 +22,19 @@ pub struct EvalArgs {
     /// Print one JSON object {"chi2", "energy", "coherence"}.
     #[arg(long)]
     json: bool,
+    /// Evaluate against the analysis even if its fingerprint differs from the one the
+    /// result was synthesized from.
+    #[arg(long)]
+    force_analysis: bool,
 }
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
-    let (level, state, what) = if args.result.join(MANIFEST).is_file() {
+    let (level, state, what, recorded) = if args.result.join(MANIFEST).is_file() {
         let (width, height, state, manifest) = read_plane(&args.result)?;
         let neighborhood = manifest["params"]["neighborhood"].as_u64().unwrap_or(5) as usize;
         let grid = grid_levels(width, height, 1, neighborhood, 3).remove(0);
-        (grid, state, format!("{width}x{height} plane"))
+        let recorded = manifest["analysis_fingerprint"].as_str().map(str::to_string);
+        (grid, state, format!("{width}x{height} plane"), recorded)
     } else if args.result.is_file() {
         let map = read_surface_ply(&args.result)?;
         let neighborhood = map
@@ -39,10 +46,14 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
             .unwrap_or(5) as usize;
         let level = surface_level(&map.mesh, &map.frames, map.texel, neighborhood)?;
         let what = format!("surface map of {} vertices", map.mesh.vertex_count());
-        (level, map.state, what)
+        let recorded = map.comment(ANALYSIS_FINGERPRINT_KEY).map(str::to_string);
+        (level, map.state, what, recorded)
     } else {
         bail!("{}: not a result: expected a surface map PLY or a plane directory", args.result.display());
     };
+    if !args.force_analysis {
+        verify_fingerprint(&args.analysis, &args.result, recorded.as_deref()).map_err(with_force_hint)?;
+    }
     let quality = evaluate(&args, &level, &state)?;
     if args.json {
         println!("{}", serde_json::to_string(&quality)?);

@@ -110,9 +110,11 @@ pub fn write_plane(
         .collect();
     save_png(&dir.join("result.png"), w, h, &copied)?;
 
+    let fingerprint = crate::analysis::store::read_manifest(analysis_dir)?.source.fingerprint;
     let manifest = serde_json::json!({
         "kind": "plane",
         "analysis": analysis_dir.display().to_string(),
+        "analysis_fingerprint": fingerprint,
         "width": w,
         "height": h,
         "params": params_json,
