@@ -105,9 +105,12 @@ fn bad_synthesis_inputs_leave_nothing_behind() {
         &btfsynth(&["synth", missing.to_str().unwrap(), "--plane", "8x8", "-o", o]),
         "nothing",
     );
-    assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--k", "99", "-o", o]), "--k 99");
-    assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--levels", "5", "-o", o]), "--levels 5");
-    assert_one_line_error(
+    common::assert_usage_error(&btfsynth(&["synth", a, "--plane", "8x8", "--k", "99", "-o", o]), "--k 99");
+    common::assert_usage_error(
+        &btfsynth(&["synth", a, "--plane", "8x8", "--levels", "5", "-o", o]),
+        "--levels 5",
+    );
+    common::assert_usage_error(
         &btfsynth(&["synth", a, "--plane", "8x8", "--preset", "nope", "-o", o]),
         "unknown preset",
     );
