@@ -14,7 +14,7 @@ pub struct ShotArgs {
     #[arg(long, value_name = "DIR")]
     pub analysis: Option<PathBuf>,
     /// Use the analysis even if its fingerprint differs from the one the surface map was
-    /// synthesized from (it must still be an analysis of a sample of the same size).
+    /// synthesized from (an analysis of another sample).
     #[arg(long)]
     pub force_analysis: bool,
     /// Image size in pixels.

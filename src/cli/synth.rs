@@ -46,9 +46,9 @@ pub struct SynthArgs {
     /// width]. Excludes --scale and --vertices.
     #[arg(long, group = "density", value_parser = super::positive_number)]
     texels_across: Option<f32>,
-    /// Vertices of the finest synthesis mesh (one vertex spacing = one texel); at least 4
-    /// per vertex of the next coarser level, 4 on the coarsest. Excludes --scale and
-    /// --texels-across.
+    /// Vertices of the finest synthesis mesh (one vertex spacing = one texel); at least 4 on
+    /// the coarsest level, 4 times more per finer level, and one neighbourhood (64 for 3
+    /// levels). Excludes --scale and --texels-across.
     #[arg(long, group = "density")]
     vertices: Option<usize>,
     /// Tangent directions: smooth (a relaxed field), axis:x,y,z (a world direction
