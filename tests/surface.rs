@@ -51,9 +51,12 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let eval = btfsynth(&["eval", a.to_str().unwrap(), one.to_str().unwrap(), "--json"]);
     assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
     let q: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
-    assert!(q["chi2"].as_f64().unwrap() < 0.5, "{q}");
-    assert!(q["energy"].as_f64().unwrap().is_finite());
-    assert!(q["coherence"].as_f64().unwrap() >= 1.0, "{q}");
+    assert_eq!(q["kind"], "surface");
+    assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.5, "{q}");
+    assert!(q["textons"]["energy"].as_f64().unwrap().is_finite());
+    assert!(q["coords"]["coherence"].as_f64().unwrap() >= 1.0, "{q}");
+    assert!(q["coords"]["collapse"].as_f64().unwrap() <= 0.05, "{q}");
+    assert!(q["probes"][0]["patch_energy"].as_f64().unwrap().is_finite(), "{q}");
 }
 
 #[test]

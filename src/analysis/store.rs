@@ -10,6 +10,7 @@
 //! | `level{L}_embedding.npy` | f32 | [t+1, d] spectral embedding |
 //! | `level{L}_knn.npy` | u32 | [h_L, w_L, k] kNN lists (pixel index y·w+x, itself first) |
 //! | `level{L}_knn2.npy` | u32 | [h_L, w_L, k] two-level-neighbourhood lists (not on the coarsest level) |
+//! | `level{L}_appearance.npy` | f32 | [h_L, w_L, d] per-pixel appearance vectors |
 
 use super::npy;
 use super::pipeline::Analysis;
@@ -65,6 +66,9 @@ pub struct Params {
     pub neighborhood: usize,
     pub tileable: bool,
     pub basis_rank: usize,
+    /// Absent in analyses written before appearance vectors existed.
+    #[serde(default)]
+    pub appearance_dims: usize,
     pub seed: u64,
 }
 
@@ -90,6 +94,9 @@ pub struct LevelFiles {
     pub embedding: String,
     pub knn: String,
     pub knn_two_level: Option<String>,
+    /// Absent in analyses written before appearance vectors existed.
+    #[serde(default)]
+    pub appearance: Option<String>,
 }
 
 /// Writes `analysis` of `btf` (read from `source_path` with `crop`) into `dir`.
@@ -128,6 +135,7 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
         embedding: format!("level{l}_embedding.npy"),
         knn: format!("level{l}_knn.npy"),
         knn_two_level: level.knn_two_level.as_ref().map(|_| format!("level{l}_knn2.npy")),
+        appearance: Some(format!("level{l}_appearance.npy")),
     };
     let k = level.knn.len() / (w * h).max(1);
     npy::write(&out.join(&files.textons), &[h, w], &t.map.labels)?;
@@ -144,6 +152,10 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
     npy::write(&out.join(&files.knn), &[h, w, k], &level.knn)?;
     if let (Some(name), Some(lists)) = (&files.knn_two_level, &level.knn_two_level) {
         npy::write(&out.join(name), &[h, w, k], lists)?;
+    }
+    if let Some(name) = &files.appearance {
+        let a = &t.appearance;
+        npy::write(&out.join(name), &[h, w, a.ncols()], &a.iter().copied().collect::<Vec<_>>())?;
     }
     Ok(LevelInfo {
         width: w,
@@ -187,6 +199,7 @@ fn manifest(
             neighborhood: p.neighborhood,
             tileable: p.tileable,
             basis_rank: p.basis_rank,
+            appearance_dims: p.appearance_dims,
             seed: p.seed,
         },
         filters: serde_json::json!({"name": p.filters.name(), "filters": filters}),

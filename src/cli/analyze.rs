@@ -40,6 +40,10 @@ pub struct AnalyzeArgs {
     /// Most principal images filtered per level (more = closer to filtering every image).
     #[arg(long, default_value_t = 32, value_name = "N", value_parser = super::at_least(1))]
     basis: usize,
+    /// Dimensions of the per-pixel appearance vectors (PCA of the filter responses) that the
+    /// appearance-space synthesis metric compares.
+    #[arg(long, default_value_t = crate::analysis::appearance::DEFAULT_DIMS, value_name = "N")]
+    appearance_dims: usize,
     /// A filter bank TOML file (default: the built-in Leung–Malik 48, filters/lm48.toml).
     #[arg(long, value_name = "FILE")]
     filters: Option<PathBuf>,
@@ -68,6 +72,7 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         neighborhood: args.neighborhood,
         tileable: args.tileable,
         basis_rank: args.basis,
+        appearance_dims: args.appearance_dims,
         seed: args.seed,
         filters,
     };

@@ -1,6 +1,7 @@
 //! Argument parsing, progress display and error printing: the only terminal code.
 
 mod analyze;
+mod convert;
 mod demo;
 mod eval;
 mod gen;
@@ -54,6 +55,8 @@ enum Command {
     /// Render a surface map on the GPU (wgpu): an interactive window, or --headless frames.
     #[cfg(feature = "gpu")]
     View(view::ViewArgs),
+    /// Convert a stack: to a folder of EXR/PNG images, or to a DFMF .btf file (--to btf).
+    Convert(convert::ConvertArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -86,6 +89,7 @@ pub fn main() -> ExitCode {
         Command::Render(args) => render::run(args, &bars),
         #[cfg(feature = "gpu")]
         Command::View(args) => view::run(args, &bars),
+        Command::Convert(args) => convert::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };

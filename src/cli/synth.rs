@@ -35,6 +35,14 @@ pub struct SynthArgs {
     /// Synthesize on a regular W×H grid instead of a mesh (2D texture synthesis).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     plane: Option<(usize, usize)>,
+    /// With --plane: also show the result under this view θ,φ (degrees from the normal;
+    /// repeatable; every --view with every --light, each the nearest measured image)
+    /// [default: head-on, light at 45° and grazing light].
+    #[arg(long = "view", value_name = "θ,φ", value_parser = super::shots::parse_angles, requires = "plane")]
+    views: Vec<(f32, f32)>,
+    /// With --plane: also show the result under this light θ,φ (see --view).
+    #[arg(long = "light", value_name = "θ,φ", value_parser = super::shots::parse_angles, requires = "plane")]
+    lights: Vec<(f32, f32)>,
     /// Output: a binary PLY for a mesh, a directory for --plane.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
@@ -62,13 +70,14 @@ pub struct SynthArgs {
     #[arg(long, value_parser = super::at_least(1))]
     levels: Option<usize>,
     /// Side of the square neighbourhood template (odd, at least 3).
-    #[arg(long, default_value_t = 5, value_parser = super::odd_side)]
+    #[arg(long, default_value_t = 7, value_parser = super::odd_side)]
     neighborhood: usize,
     /// Candidate search.
     #[arg(long, value_enum, default_value_t = SearchKind::Kcoherence)]
     search: SearchKind,
-    /// The engine's parts, named after their paper: tong2002 (Tong et al. 2002).
-    #[arg(long, default_value = "tong2002")]
+    /// The engine's parts, named after their paper: appearance (default: Tong's engine
+    /// matched on appearance vectors) or tong2002 (Tong's texton distances through Γ).
+    #[arg(long, default_value = "appearance")]
     preset: String,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
@@ -112,12 +121,8 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let params = SynthParams {
-        preset: Preset::by_name(&args.preset).map_err(usage)?,
-        search,
-        neighborhood: args.neighborhood,
-        seed: args.seed,
-    };
+    let preset = Preset::by_name(&args.preset).map_err(usage)?;
+    let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
@@ -131,8 +136,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         }
         (None, Some(size)) => {
             let result = synthesize_plane(&sample, size, &params, bars)?;
+            let probes = shown_probes(&args)?;
             let written =
-                write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
+                write_plane(&result, &args.analysis, &probes, params_json.clone(), &args.output, args.force)?;
             print_reports(&result.reports);
             eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
             result.reports
@@ -144,6 +150,18 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// The view/light pairs asked for with --view/--light (empty: the defaults).
+fn shown_probes(args: &SynthArgs) -> Result<Vec<crate::analysis::images::Probe>> {
+    if args.views.is_empty() && args.lights.is_empty() {
+        return Ok(Vec::new());
+    }
+    let views = if args.views.is_empty() { vec![(0.0, 0.0)] } else { args.views.clone() };
+    let lights = if args.lights.is_empty() { vec![(0.0, 0.0)] } else { args.lights.clone() };
+    let pairs: Vec<([f32; 2], [f32; 2])> =
+        views.iter().flat_map(|&(vt, vp)| lights.iter().map(move |&(lt, lp)| ([vt, vp], [lt, lp]))).collect();
+    Ok(crate::analysis::images::SampleImages::open(&args.analysis)?.probes_for(&pairs))
 }
 
 fn density(args: &SynthArgs, sample_width: usize) -> Density {

@@ -128,7 +128,7 @@ pub fn build_pyramid(
             &mut targets[l],
             &coarse.mesh,
             &coarse.frames,
-            &coarse_templates,
+            coarse_templates,
             fine.texel,
         )?;
     }
