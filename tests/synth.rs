@@ -63,7 +63,7 @@ fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::P
         report.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let q = eval(&analysis, &plane);
+    let q = eval(analysis, &plane);
     assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
     assert!(q["textons"]["energy"].as_f64().unwrap() < 0.01, "{q}");
     // Every output patch exists in the sample and the colours keep their shares: the pattern
