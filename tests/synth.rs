@@ -63,7 +63,7 @@ fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::P
         report.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let q = eval(&analysis, &plane);
+    let q = eval(analysis, &plane);
     assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
     assert!(q["textons"]["energy"].as_f64().unwrap() < 0.01, "{q}");
     // Every output patch exists in the sample and the colours keep their shares: the pattern
@@ -116,9 +116,12 @@ fn bad_synthesis_inputs_leave_nothing_behind() {
         &btfsynth(&["synth", missing.to_str().unwrap(), "--plane", "8x8", "-o", o]),
         "nothing",
     );
-    assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--k", "99", "-o", o]), "--k 99");
-    assert_one_line_error(&btfsynth(&["synth", a, "--plane", "8x8", "--levels", "5", "-o", o]), "--levels 5");
-    assert_one_line_error(
+    common::assert_usage_error(&btfsynth(&["synth", a, "--plane", "8x8", "--k", "99", "-o", o]), "--k 99");
+    common::assert_usage_error(
+        &btfsynth(&["synth", a, "--plane", "8x8", "--levels", "5", "-o", o]),
+        "--levels 5",
+    );
+    common::assert_usage_error(
         &btfsynth(&["synth", a, "--plane", "8x8", "--preset", "nope", "-o", o]),
         "unknown preset",
     );

@@ -121,10 +121,15 @@ impl AnalysisParams {
                     w.min(h) >= need
                 })
                 .count();
+            let n = self.neighborhood;
+            if fit == 0 {
+                return Err(Error::invalid(format!(
+                    "the sample is {width}x{height} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; analyse a larger sample or use a smaller --neighborhood"
+                )));
+            }
             return Err(Error::invalid(format!(
                 "--levels {}: the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; use --levels {fit} or fewer",
-                self.levels,
-                n = self.neighborhood
+                self.levels
             )));
         }
         Ok(())

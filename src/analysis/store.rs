@@ -250,6 +250,23 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     Ok(manifest)
 }
 
+/// Checks that the analysis in `dir` is the one `result` was synthesized from, by the
+/// fingerprint the result recorded (results written before fingerprints were recorded,
+/// `recorded` = None, are accepted).
+pub fn verify_fingerprint(dir: &Path, result: &Path, recorded: Option<&str>) -> Result<()> {
+    let Some(recorded) = recorded else { return Ok(()) };
+    let found = read_manifest(dir)?.source.fingerprint;
+    if found == recorded {
+        return Ok(());
+    }
+    Err(Error::AnalysisMismatch {
+        result: result.to_path_buf(),
+        analysis: dir.to_path_buf(),
+        recorded: recorded.to_string(),
+        found,
+    })
+}
+
 /// FNV-1a 64 over the directions and the pixels' f16 bits.
 pub fn fingerprint(btf: &Btf) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;

@@ -72,7 +72,7 @@ impl ImageSource for Btf {
 
 /// The lazy source of a file that holds a whole stack (a Bonn `.btf` file or a zip of
 /// UBO2003/ATRIUM images), restricted to `crop`; `None` if `path` is not such a file
-/// (a directory, a manifest or one image, which [`crate::btf::load`] reads).
+/// (a directory, a manifest or one image, which [`crate::btf::load()`] reads).
 pub fn open(path: &Path, crop: Option<Crop>) -> Result<Option<Box<dyn ImageSource>>> {
     if crate::btf::ubo2014::is_bonn_file(path) {
         let file = crate::btf::ubo2014::BonnBtf::open(path)?;

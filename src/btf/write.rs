@@ -12,7 +12,8 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// Image file format of a written stack.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum ImageFormat {
     /// Half-float OpenEXR, lossless: the stack reads back bit for bit (default).
     #[default]

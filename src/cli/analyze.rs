@@ -1,6 +1,7 @@
 //! `btfsynth analyze`: texton analysis of a stack.
 
 use super::progress::Bars;
+use super::usage;
 use crate::analysis::filters::FilterBank;
 use crate::analysis::pipeline::{analyze, AnalysisParams};
 use crate::analysis::store;
@@ -20,25 +21,26 @@ pub struct AnalyzeArgs {
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
     /// Textons at the finest level (capped by the pixel count); each coarser level gets a quarter.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = super::at_least(1))]
     textons: usize,
     /// Representative images clustered into textons (capped by the image count).
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = super::at_least(1))]
     selected: usize,
-    /// Pyramid levels.
-    #[arg(long, default_value_t = 3)]
+    /// Pyramid levels (each half the size of the finer one; the coarsest must be at least
+    /// the neighbourhood + 4 pixels wide).
+    #[arg(long, default_value_t = 3, value_parser = super::at_least(1))]
     levels: usize,
     /// Length of each kNN list, the pixel itself included (1 = Ashikhmin's coherence search).
-    #[arg(long, default_value_t = 11)]
+    #[arg(long, default_value_t = 11, value_parser = super::at_least(1))]
     k: usize,
-    /// Side of the square neighbourhood used by the kNN search (odd).
-    #[arg(long, default_value_t = 5)]
+    /// Side of the square neighbourhood used by the kNN search (odd, at least 3).
+    #[arg(long, default_value_t = 5, value_parser = super::odd_side)]
     neighborhood: usize,
     /// The sample tiles: filters and neighbourhoods wrap around instead of mirroring.
     #[arg(long)]
     tileable: bool,
     /// Most principal images filtered per level (more = closer to filtering every image).
-    #[arg(long, default_value_t = 32, value_name = "N")]
+    #[arg(long, default_value_t = 32, value_name = "N", value_parser = super::at_least(1))]
     basis: usize,
     /// Dimensions of the per-pixel appearance vectors (PCA of the filter responses) that the
     /// appearance-space synthesis metric compares.
@@ -106,6 +108,7 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         filters,
     };
     let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
+    params.validate(stack.width(), stack.height()).map_err(usage)?;
     let maps = load_maps(&args, &stack)?;
     let analysis = analyze(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);

@@ -98,7 +98,7 @@ const DEMO_FRAMES: usize = 16;
 
 /// Renders the surface map under a light circling at 45° elevation, EXR and PNG frames.
 fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
-    let (scene, analysis) = open_surface(surface, None)?;
+    let (scene, analysis) = open_surface(surface, None, true)?;
     let material = Material::open(&analysis)?;
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;

@@ -1,9 +1,11 @@
 //! `btfsynth eval`: quality of a synthesized result against its sample.
 
 use super::progress::Bars;
+use super::shots::with_force_hint;
+use crate::analysis::store::verify_fingerprint;
 use crate::eval::report::{evaluate_picture, evaluate_plane, evaluate_surface, Evaluation};
 use crate::synth::plane::MANIFEST;
-use crate::synth::surface_map::read_surface_ply;
+use crate::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use anyhow::{bail, Result};
 use std::path::PathBuf;
 
@@ -34,15 +36,21 @@ pub struct EvalArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Evaluate against the analysis even if its fingerprint differs from the one the
+    /// result was synthesized from.
+    #[arg(long)]
+    force_analysis: bool,
 }
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
     let evaluation = if args.result.join(MANIFEST).is_file() {
+        check_analysis(&args, plane_fingerprint(&args.result).as_deref())?;
         evaluate_plane(&args.analysis, &args.result)?
     } else if is_picture(&args.result) {
         evaluate_picture(&args.analysis, &args.result)?
     } else if args.result.is_file() {
         let map = read_surface_ply(&args.result)?;
+        check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
         let neighborhood = map
             .comments
             .iter()
@@ -63,6 +71,22 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         print_table(&args, &evaluation);
     }
     Ok(())
+}
+
+/// Refuses an analysis of another sample than the one the result records (`recorded`),
+/// unless `--force-analysis`. A picture records none.
+fn check_analysis(args: &EvalArgs, recorded: Option<&str>) -> Result<()> {
+    if args.force_analysis {
+        return Ok(());
+    }
+    verify_fingerprint(&args.analysis, &args.result, recorded).map_err(with_force_hint)
+}
+
+/// The analysis fingerprint a plane result's manifest records, if any.
+fn plane_fingerprint(dir: &std::path::Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
+    let manifest: serde_json::Value = serde_json::from_str(&text).ok()?;
+    manifest["analysis_fingerprint"].as_str().map(str::to_string)
 }
 
 fn is_picture(path: &std::path::Path) -> bool {

@@ -44,6 +44,9 @@ pub struct ExportArgs {
     /// The analysis directory [default: the one named in the surface map's header].
     #[arg(long, value_name = "DIR")]
     analysis: Option<PathBuf>,
+    /// Use --analysis even though it is not the analysis the map was synthesized from.
+    #[arg(long, requires = "analysis")]
+    force_analysis: bool,
     /// Atlas width and height in texels [default: about one texel per synthesized sample
     /// texel, rounded up to a power of two].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(i64::from(*SIZE_RANGE.start())..=i64::from(*SIZE_RANGE.end())))]
@@ -82,6 +85,7 @@ pub fn run(args: ExportArgs, bars: &Bars) -> Result<()> {
     let options = ExportOptions {
         mesh: args.mesh,
         analysis: args.analysis,
+        force_analysis: args.force_analysis,
         size: args.size,
         uvs: match (args.keep_uvs, args.new_uvs) {
             (true, _) => UvChoice::Keep,

@@ -249,6 +249,8 @@ fn surface_header(path: &Path) -> Result<Option<serde_json::Value>> {
         "vertices": count("vertex"),
         "faces": count("face"),
         "analysis": field("comment analysis ").unwrap_or(""),
+        "analysis_absolute": field("comment analysis-absolute ").unwrap_or(""),
+        "analysis_fingerprint": field("comment analysis-fingerprint ").unwrap_or(""),
         "mesh": field("comment mesh ").unwrap_or(""),
         "params": params,
     })))

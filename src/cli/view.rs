@@ -4,18 +4,25 @@ use super::progress::Bars;
 use super::shots::{OutputArgs, ShotArgs};
 use crate::progress::Progress;
 use crate::render::gpu::{Display, GpuRenderer};
-use crate::render::scene::open_surface;
 use crate::render::{viewer, Material, SequenceWriter};
-use anyhow::{Context, Result};
+use anyhow::Result;
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
-#[command(after_help = "Examples:\n  btfsynth view bunny.ply\n  \
+#[command(
+    override_usage = "btfsynth view [OPTIONS] <SURFACE>\n       \
+btfsynth view [OPTIONS] --headless -o <DIR> <SURFACE>",
+    after_help = "Examples:\n  btfsynth view bunny.ply\n  \
 btfsynth view bunny.ply --headless -o frames/ --frames 24 --size 1024x1024 --format png\n\n\
-Without --headless a window opens; its keys are printed when it does.")]
+Without --headless a window opens; its keys are printed when it does."
+)]
 pub struct ViewArgs {
     #[command(flatten)]
     shots: ShotArgs,
+    /// Output directory of --headless: the frames and contact.png.
+    #[arg(short, long, value_name = "DIR", required_if_eq("headless", "true"))]
+    output: Option<PathBuf>,
     #[command(flatten)]
     out: OutputArgs,
     /// Render the shots offscreen into -o DIR (the same light orbit as `render`) instead of
@@ -62,16 +69,18 @@ fn quiet_wayland_probe() {
 }
 
 pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
-    let plan = args.shots.plan()?;
+    let plan = args.shots.plan();
     if !args.headless {
-        let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
+        let (scene, analysis) = args.shots.open_surface()?;
         let material = Material::open(&analysis)?;
         return Ok(viewer::run(scene, material, &plan, args.shots.mode)?);
     }
-    let dir = args.out.output.clone().context("--headless renders into a directory: give -o DIR")?;
+    let Some(dir) = &args.output else {
+        return Err(super::usage("--headless renders into a directory: give -o DIR"));
+    };
     quiet_wayland_probe();
-    let mut writer = SequenceWriter::new(&dir, &[args.out.format], args.out.force)?;
-    let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
+    let mut writer = SequenceWriter::new(dir, &[args.out.format], args.out.force)?;
+    let (scene, analysis) = args.shots.open_surface()?;
     let material = Material::open(&analysis)?;
     let vertices = scene.mesh.vertex_count();
     let mut renderer = GpuRenderer::headless(scene, material, plan.size)?;
@@ -89,12 +98,12 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     bars.finish();
     let dir = writer.finish()?;
     eprintln!(
-        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {:?} mode): {:.1} ms per frame",
+        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode): {:.1} ms per frame",
         shots.len(),
         plan.size.0,
         plan.size.1,
         renderer.adapter_name(),
-        args.shots.mode,
+        args.shots.mode_name(),
         1e3 * seconds / shots.len() as f64
     );
     println!("{}", dir.join("contact.png").display());

@@ -60,6 +60,8 @@ pub struct ExportOptions {
     pub mesh: Option<PathBuf>,
     /// The analysis directory (default: the one the surface map's header names).
     pub analysis: Option<PathBuf>,
+    /// Accept an analysis of another sample than the one the map was synthesized from.
+    pub force_analysis: bool,
     /// Atlas width and height in texels (default: about one atlas texel per sample texel on
     /// the surface, rounded up to a power of two).
     pub size: Option<u32>,
@@ -127,7 +129,7 @@ pub fn export(
     for file in output_files(output, binary) {
         check_target(&file, options.overwrite)?;
     }
-    let (scene, analysis_dir) = open_surface(surface, options.analysis.as_deref())?;
+    let (scene, analysis_dir) = open_surface(surface, options.analysis.as_deref(), !options.force_analysis)?;
     let material = Material::open(&analysis_dir)?;
     let light = options.light.filter(|_| material.len() > 1);
     if options.light.is_some() && light.is_none() {

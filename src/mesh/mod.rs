@@ -158,9 +158,15 @@ pub(crate) mod test_meshes {
     use super::Mesh;
     use glam::Vec3;
 
-    /// Path of a mesh in the shared test data.
-    pub fn shared(name: &str) -> std::path::PathBuf {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/meshes").join(name)
+    /// Path of a mesh bundled in `data/` (shipped with the crate, so always there).
+    pub fn bundled(name: &str) -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
+    }
+
+    /// Path of a mesh in the shared test data, or None (with a line saying `test` was
+    /// skipped) where it is absent; see [`crate::testdata`].
+    pub fn shared(test: &str, name: &str) -> Option<std::path::PathBuf> {
+        crate::testdata::shared_data(test, &format!("meshes/{name}"))
     }
 
     /// An axis-aligned unit cube, 8 vertices and 12 outward-facing triangles.

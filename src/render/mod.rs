@@ -12,9 +12,11 @@ pub mod material;
 pub use material::{Blend16, Material};
 pub mod camera;
 pub mod cpu;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod output;
 pub mod scene;
+#[cfg(feature = "gpu")]
 pub mod viewer;
 
 pub use camera::{Camera, Orbit, Projection, Shot, ShotPlan};

@@ -46,7 +46,7 @@ pub enum Start {
     /// Every vertex a random texel (Tong §5.1).
     Random,
     /// Random coherent patches of this radius, as a fraction of the coarsest sample level's
-    /// smaller side (see [`start::patch_state`]).
+    /// smaller side (see `start::patch_state`).
     Patches { radius: f32 },
 }
 

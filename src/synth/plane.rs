@@ -107,9 +107,11 @@ pub fn write_plane(
     }
     crate::maps::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
 
+    let fingerprint = crate::analysis::store::read_manifest(analysis_dir)?.source.fingerprint;
     let manifest = serde_json::json!({
         "kind": "plane",
         "analysis": analysis_dir.display().to_string(),
+        "analysis_fingerprint": fingerprint,
         "width": w,
         "height": h,
         "params": params_json,

@@ -8,7 +8,7 @@
 //!
 //! - **DFMF**: per colour channel (after a colour model such as log-Y, U/Y, V/Y) an SVD of
 //!   the (lights · views) × (width · height) matrix: S, U and SxV. A texel is
-//!   Σₖ U[l + lights · v][k] · SxV[x + width · y][k], then the colour model is undone.
+//!   Σₖ U\[l + lights · v\]\[k\] · SxV\[x + width · y\]\[k\], then the colour model is undone.
 //! - **FMF**: one SVD whose rows interleave the channels; FMF12 adds a dynamic-range flag
 //!   (the data are log(value + ε)) and a height map.
 //! - **BDI**: raw half-float ABRDFs, in chunks of scan lines (uncompressed or sparse).

@@ -94,6 +94,8 @@ fn read_element(element: &Element, values: &mut Values, soup: &mut Soup) -> Resu
                 Soup::fan_triangulate(&polygon, &mut soup.triangles);
             }
         }
+        // An element without properties takes no bytes, whatever its count claims.
+        _ if element.properties.is_empty() => {}
         _ => {
             let mut row = Vec::new();
             for i in 0..element.count {
