@@ -108,8 +108,8 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         filters,
     };
     let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
-    params.validate(stack.width(), stack.height()).map_err(usage)?;
     let maps = load_maps(&args, &stack)?;
+    params.validate(stack.width(), stack.height()).map_err(usage)?;
     let analysis = analyze(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
     let written =
