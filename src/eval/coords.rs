@@ -10,6 +10,13 @@ use serde::Serialize;
 /// mesh's one-ring at one-texel edges.
 const ADJACENT: f32 = 1.5;
 
+/// Whether an offset between adjacent vertices spans at least one texel (rounded), so that
+/// a coherent copy would give them different texels. Two mesh vertices half a texel apart
+/// may rightly share one.
+fn spans_a_texel([dx, dy]: [f32; 2]) -> bool {
+    dx.round() != 0.0 || dy.round() != 0.0
+}
+
 /// What the coordinate map says about the result.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct CoordQuality {
@@ -17,8 +24,9 @@ pub struct CoordQuality {
     /// 0.01; above 0.05 a few texels are stamped everywhere (visible as repeated blobs or
     /// flat areas).
     pub collapse: f64,
-    /// Share of adjacent output pairs that copy the very same texel. A coherent copy gives
-    /// 0; on planes anything above 0.01 shows as one-colour streaks or blocks.
+    /// Share of adjacent output pairs (at least a texel apart, rounded) that copy the very
+    /// same texel. A coherent copy gives 0; anything above 0.01 shows as one-colour streaks
+    /// or blocks.
     pub smear: f64,
     /// The largest patch copied contiguously, as a share of the sample's area: around 1 or
     /// more means the sample was copied whole (a tiling, not a synthesis).
@@ -56,12 +64,13 @@ pub fn collapse(uv: &[[i32; 2]], (width, height): (usize, usize)) -> f64 {
     uses[..top].iter().map(|&u| u as f64).sum::<f64>() / uv.len().max(1) as f64
 }
 
-/// Share of adjacent pairs (each direction counted) with identical coordinates.
+/// Share of adjacent pairs a texel or more apart (each direction counted) with identical
+/// coordinates.
 pub fn smear(level: &TargetLevel, state: &State) -> f64 {
     let (mut pairs, mut same, mut scratch) = (0usize, 0usize, Vec::new());
     for v in 0..level.vertices {
         for &(u, [dx, dy]) in level.shifts_of(v, &mut scratch) {
-            if u as usize != v && dx.hypot(dy) <= ADJACENT {
+            if u as usize != v && dx.hypot(dy) <= ADJACENT && spans_a_texel([dx, dy]) {
                 pairs += 1;
                 same += usize::from(state.uv[u as usize] == state.uv[v]);
             }

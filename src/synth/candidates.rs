@@ -42,25 +42,17 @@ pub fn full_candidates(sample: &SampleLevel, radius: usize) -> Vec<u32> {
 /// Gathers k-coherence candidates, deduplicated by a per-visit stamp.
 pub struct Coherence {
     stamp: Vec<u32>,
-    /// Per texel, its place in `out` during the visit that stamped it.
-    place: Vec<u32>,
+    /// Texels that are some patch vertex's forward shift itself during the visit that
+    /// stamped them: candidates that continue a copy rather than start a new one.
+    shift_stamp: Vec<u32>,
     visit: u32,
     pub out: Vec<u32>,
-    /// Per candidate, whether it is some patch vertex's forward shift itself (it continues
-    /// a copy) rather than one of its nearest neighbours (it starts a new one).
-    pub coherent: Vec<bool>,
 }
 
 impl Coherence {
     pub fn new(sample: &SampleLevel) -> Self {
         let n = sample.width * sample.height;
-        Coherence {
-            stamp: vec![u32::MAX; n],
-            place: vec![0; n],
-            visit: 0,
-            out: Vec::new(),
-            coherent: Vec::new(),
-        }
+        Coherence { stamp: vec![u32::MAX; n], shift_stamp: vec![u32::MAX; n], visit: 0, out: Vec::new() }
     }
 
     /// The candidates of a vertex whose patch vertices are `shifts` (with their offsets in
@@ -78,7 +70,6 @@ impl Coherence {
     ) -> &[u32] {
         self.visit = self.visit.wrapping_add(1);
         self.out.clear();
-        self.coherent.clear();
         for &(u, offset) in shifts {
             if known.is_some_and(|known| !known[u as usize]) {
                 continue;
@@ -90,18 +81,21 @@ impl Coherence {
                 continue;
             }
             let pixel = sample.candidate_pixel(x, y, radius);
-            for (i, &q) in sample.list(pixel, k, two_level).iter().enumerate() {
-                let q = q as usize;
-                if self.stamp[q] != self.visit {
-                    self.stamp[q] = self.visit;
-                    self.place[q] = self.out.len() as u32;
-                    self.out.push(q as u32);
-                    self.coherent.push(i == 0);
-                } else if i == 0 {
-                    self.coherent[self.place[q] as usize] = true;
+            self.shift_stamp[pixel] = self.visit;
+            for &q in sample.list(pixel, k, two_level) {
+                if self.stamp[q as usize] != self.visit {
+                    self.stamp[q as usize] = self.visit;
+                    self.out.push(q);
                 }
             }
         }
         &self.out
+    }
+
+    /// Whether texel `q` is a forward shift of the vertex last gathered for: it continues
+    /// a neighbour's copy.
+    #[inline]
+    pub fn continues(&self, q: u32) -> bool {
+        self.shift_stamp[q as usize] == self.visit
     }
 }

@@ -94,29 +94,29 @@ pub(crate) fn pass<M: Metric>(
             p.metric.prepare(level.parent_slots_of(v, &mut parent_slots), p.state, None, &mut up);
         }
         let seed;
-        let mut flags: &[bool] = &[];
-        let set: &[u32] = match (&full, plan.search) {
-            (Some(all), _) => all,
-            (None, search) => {
-                let k = if let Search::KCoherence { k } = search { k } else { sample.k };
-                let sources = level.shifts_of(v, &mut shifts);
-                let gathered =
-                    coherence.gather(sources, known.as_deref(), state, sample, (k, radius, parent.is_some()));
-                if gathered.is_empty() {
-                    let [x, y] = super::start::random_texel(sample, radius, rng);
-                    seed = [(y as usize * sample.width + x as usize) as u32];
-                    &seed
-                } else {
-                    flags = &coherence.coherent;
-                    &coherence.out
-                }
+        let k = if let Search::KCoherence { k } = plan.search { k } else { 1 };
+        // A full search gathers the forward shifts too, to know which texels continue a copy.
+        let gathered = coherence.gather(
+            level.shifts_of(v, &mut shifts),
+            known.as_deref(),
+            state,
+            sample,
+            (k, radius, parent.is_some()),
+        );
+        let set: &[u32] = match &full {
+            Some(all) => all,
+            None if gathered.is_empty() => {
+                let [x, y] = super::start::random_texel(sample, radius, rng);
+                seed = [(y as usize * sample.width + x as usize) as u32];
+                &seed
             }
+            None => &coherence.out,
         };
         let mut best = (f32::INFINITY, state.uv[v]);
         let current = state.uv[v];
-        for (i, &q) in set.iter().enumerate() {
+        for &q in set {
             let (x, y) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
-            let fresh = if flags.get(i).copied().unwrap_or(true) { 1.0 } else { 1.0 + plan.coherence_bias };
+            let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + plan.coherence_bias };
             let factor = usage.factor(q, current) * fresh;
             let bound = best.0 / factor;
             let mut d = metric.cost(&own, x, y, bound);

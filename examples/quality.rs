@@ -1,0 +1,338 @@
+//! The synthesis-quality benchmark: btfsynth (defaults) beside Embark's `texture-synthesis`
+//! (defaults) on every photograph of `../shared/data/textures` (a 128² crop → 512²) and on
+//! generated BTFs (`gen pebbles|weave|bricks`, 64² → 256²), with wall time, CPU time, peak
+//! memory and every quality measure of `btfsynth eval`, one table and one montage per sample
+//! (sample | Embark | btfsynth). Not a test: figures are reported, never asserted.
+//!
+//! ```text
+//! benches/quality.sh            # installs the peer into target/peer, then runs this
+//! cargo run --release --example quality -- --peer PATH [--out DIR] [--seeds N] [--only NAME]
+//! ```
+//!
+//! btfsynth runs as its release binary (`target/release/btfsynth`), the peer as given; each
+//! run is timed through `wait4`, so CPU time and peak memory are the child's own.
+
+use btfsynth::analysis::images::SampleImages;
+use btfsynth::eval::report::evaluate_plane;
+use btfsynth::eval::{coord_quality, picture_quality, CoordQuality, Picture, PictureQuality};
+use btfsynth::synth::target::grid_levels;
+use btfsynth::synth::State;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// One measured run of a child process.
+#[derive(Clone, Copy, Default)]
+struct Cost {
+    wall: f64,
+    cpu: f64,
+    peak_mb: f64,
+}
+
+impl std::ops::Add for Cost {
+    type Output = Cost;
+    fn add(self, o: Cost) -> Cost {
+        Cost { wall: self.wall + o.wall, cpu: self.cpu + o.cpu, peak_mb: self.peak_mb.max(o.peak_mb) }
+    }
+}
+
+/// What one tool produced on one sample.
+struct Row {
+    sample: String,
+    tool: String,
+    cost: Cost,
+    picture: PictureQuality,
+    coords: Option<CoordQuality>,
+}
+
+struct Options {
+    peer: PathBuf,
+    out: PathBuf,
+    seeds: u64,
+    only: Option<String>,
+}
+
+fn main() {
+    if let Err(e) = run(options()) {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn options() -> Options {
+    let mut o = Options {
+        peer: PathBuf::from("texture-synthesis"),
+        out: "bench-out/quality".into(),
+        seeds: 1,
+        only: None,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().unwrap_or_else(|| usage(&format!("{a} needs a value")));
+        match a.as_str() {
+            "--peer" => o.peer = value().into(),
+            "--out" => o.out = value().into(),
+            "--seeds" => o.seeds = value().parse().unwrap_or_else(|_| usage("--seeds takes a number")),
+            "--only" => o.only = Some(value()),
+            _ => usage(&format!("unknown argument {a}")),
+        }
+    }
+    o
+}
+
+fn usage(message: &str) -> ! {
+    eprintln!("error: {message}\nusage: quality [--peer PATH] [--out DIR] [--seeds N] [--only NAME]");
+    std::process::exit(2);
+}
+
+type Result<T> = std::result::Result<T, String>;
+
+fn run(o: Options) -> Result<()> {
+    let btfsynth = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/release/btfsynth");
+    if !btfsynth.is_file() {
+        return Err(format!("{} is missing: build it first (cargo build --release)", btfsynth.display()));
+    }
+    std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
+    let mut rows = Vec::new();
+    for (name, stack, out_side) in samples(&o, &btfsynth)? {
+        if o.only.as_ref().is_some_and(|only| !name.contains(only.as_str())) {
+            continue;
+        }
+        eprintln!("== {name}");
+        let dir = o.out.join(&name);
+        rows.extend(sample_rows(&o, &btfsynth, &name, &stack, out_side, &dir)?);
+    }
+    let table = table(&rows);
+    std::fs::write(o.out.join("quality.md"), &table).map_err(|e| e.to_string())?;
+    println!("{table}");
+    Ok(())
+}
+
+/// (name, stack path, output side) of every sample: photograph crops and generated BTFs.
+fn samples(o: &Options, btfsynth: &Path) -> Result<Vec<(String, PathBuf, usize)>> {
+    let textures = btfsynth::testdata::shared_root().join("textures");
+    let mut out = Vec::new();
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&textures)
+        .map_err(|e| format!("{}: {e} (the photographs live in ../shared/data)", textures.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    files.sort();
+    for file in files {
+        let name = file.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        let crop = o.out.join(format!("{name}.png"));
+        let image = image::open(&file).map_err(|e| format!("{}: {e}", file.display()))?.to_rgb8();
+        let (w, h) = (image.width().min(128), image.height().min(128));
+        image::imageops::crop_imm(&image, 0, 0, w, h).to_image().save(&crop).map_err(|e| e.to_string())?;
+        out.push((name, crop, 512));
+    }
+    for material in ["pebbles", "weave", "bricks"] {
+        let stack = o.out.join(format!("gen-{material}"));
+        if !stack.join("btf.json").is_file() {
+            eprintln!("generating {material} (64² × 6561 images)");
+            let (ok, _) = timed(
+                Command::new(btfsynth)
+                    .args(["-q", "gen", material, "--size", "64", "--directions", "ubo81", "--force", "-o"])
+                    .arg(&stack),
+            )?;
+            ok.then_some(()).ok_or(format!("gen {material} failed"))?;
+        }
+        out.push((format!("gen-{material}"), stack, 256));
+    }
+    Ok(out)
+}
+
+/// btfsynth for every seed and the peer once on one sample; writes the montage.
+fn sample_rows(
+    o: &Options,
+    btfsynth: &Path,
+    name: &str,
+    stack: &Path,
+    side: usize,
+    dir: &Path,
+) -> Result<Vec<Row>> {
+    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    let analysis = dir.join("analysis");
+    let (ok, analyse) = timed(
+        Command::new(btfsynth).args(["-q", "analyze"]).arg(stack).arg("--force").arg("-o").arg(&analysis),
+    )?;
+    ok.then_some(()).ok_or(format!("analyze {name} failed"))?;
+    let images = SampleImages::open(&analysis).map_err(|e| e.to_string())?;
+    let head_on = images.default_probes()[0].image;
+    let sample = images.picture(head_on);
+    let tileable = false;
+    let mut rows = Vec::new();
+    for seed in 0..o.seeds {
+        let plane = dir.join(format!("btfsynth-{seed}"));
+        let size = format!("{side}x{side}");
+        let (ok, synth) = timed(
+            Command::new(btfsynth)
+                .args(["-q", "synth"])
+                .arg(&analysis)
+                .args(["--plane", &size, "--seed", &seed.to_string(), "--force", "-o"])
+                .arg(&plane),
+        )?;
+        ok.then_some(()).ok_or(format!("synth {name} failed"))?;
+        let e = evaluate_plane(&analysis, &plane).map_err(|e| e.to_string())?;
+        rows.push(Row {
+            sample: name.into(),
+            tool: format!("btfsynth (seed {seed})"),
+            cost: analyse + synth,
+            picture: e.probes[0].quality,
+            coords: e.coords,
+        });
+    }
+    let peer = peer_row(o, name, &sample, side, dir, tileable)?;
+    rows.push(peer);
+    montage(
+        &sample,
+        &dir.join("btfsynth-0/result.png"),
+        &dir.join("embark.png"),
+        &o.out.join(format!("montage-{name}.png")),
+    )?;
+    Ok(rows)
+}
+
+/// Embark's texture-synthesis on the head-on sample image, and its coordinate map recovered
+/// by replaying its transform on an image whose pixels spell their own coordinates.
+fn peer_row(
+    o: &Options,
+    name: &str,
+    sample: &Picture,
+    side: usize,
+    dir: &Path,
+    tileable: bool,
+) -> Result<Row> {
+    let input = dir.join("sample.png");
+    save(sample, &input)?;
+    let (out, transform) = (dir.join("embark.png"), dir.join("embark.xform"));
+    let size = side.to_string();
+    let (ok, cost) = timed(
+        Command::new(&o.peer)
+            .args(["--no-progress", "--out"])
+            .arg(&out)
+            .args(["--out-size", &size, "generate", "--save-transform"])
+            .arg(&transform)
+            .arg(&input),
+    )?;
+    ok.then_some(()).ok_or(format!("texture-synthesis on {name} failed"))?;
+    let coords_in = dir.join("coordinates.png");
+    image::RgbImage::from_fn(sample.width as u32, sample.height as u32, |x, y| {
+        image::Rgb([x as u8, y as u8, 0])
+    })
+    .save(&coords_in)
+    .map_err(|e| e.to_string())?;
+    let coords_out = dir.join("embark-coordinates.png");
+    let (ok, _) = timed(
+        Command::new(&o.peer)
+            .args(["--no-progress", "--out"])
+            .arg(&coords_out)
+            .args(["repeat", "--transform"])
+            .arg(&transform)
+            .arg(&coords_in),
+    )?;
+    let result = load(&out)?;
+    let coords = if ok {
+        let map = image::open(&coords_out).map_err(|e| e.to_string())?.to_rgb8();
+        let uv: Vec<[i32; 2]> = map.pixels().map(|p| [p[0] as i32, p[1] as i32]).collect();
+        let level = &grid_levels(map.width() as usize, map.height() as usize, 1, 7, 3)[0];
+        let state = State { labels: vec![0; uv.len()], uv };
+        Some(coord_quality(level, &state, (sample.width, sample.height), tileable))
+    } else {
+        None
+    };
+    Ok(Row {
+        sample: name.into(),
+        tool: "Embark texture-synthesis".into(),
+        cost,
+        picture: picture_quality(&result, sample, tileable),
+        coords,
+    })
+}
+
+/// Runs `command`, returning whether it succeeded and its wall time, CPU time (user +
+/// system) and peak resident memory.
+fn timed(command: &mut Command) -> Result<(bool, Cost)> {
+    let started = std::time::Instant::now();
+    let child =
+        command.stdout(std::process::Stdio::null()).spawn().map_err(|e| format!("{command:?}: {e}"))?;
+    let mut status = 0;
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: waits for our own child; `status` and `usage` are valid for writing.
+    let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
+    if pid < 0 {
+        return Err(format!("{command:?}: wait4 failed"));
+    }
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    let cost = Cost {
+        wall: started.elapsed().as_secs_f64(),
+        cpu: seconds(usage.ru_utime) + seconds(usage.ru_stime),
+        peak_mb: usage.ru_maxrss as f64 / 1024.0,
+    };
+    Ok((libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0, cost))
+}
+
+fn load(path: &Path) -> Result<Picture> {
+    let rgb = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.to_rgb32f();
+    Ok(Picture {
+        width: rgb.width() as usize,
+        height: rgb.height() as usize,
+        rgb: rgb.pixels().map(|p| p.0).collect(),
+    })
+}
+
+fn save(picture: &Picture, path: &Path) -> Result<()> {
+    let to8 = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    image::RgbImage::from_fn(picture.width as u32, picture.height as u32, |x, y| {
+        image::Rgb(picture.rgb[y as usize * picture.width + x as usize].map(to8))
+    })
+    .save(path)
+    .map_err(|e| e.to_string())
+}
+
+/// sample (1:1) | Embark | btfsynth, 8 white pixels apart.
+fn montage(sample: &Picture, ours: &Path, peer: &Path, out: &Path) -> Result<()> {
+    let tmp = out.with_extension("sample.png");
+    save(sample, &tmp)?;
+    let pictures: Vec<image::RgbImage> = [tmp.as_path(), peer, ours]
+        .iter()
+        .map(|p| image::open(p).map(|i| i.to_rgb8()).map_err(|e| format!("{}: {e}", p.display())))
+        .collect::<Result<_>>()?;
+    let _ = std::fs::remove_file(&tmp);
+    let width = pictures.iter().map(|p| p.width() + 8).sum::<u32>() - 8;
+    let height = pictures.iter().map(|p| p.height()).max().unwrap_or(0);
+    let mut sheet = image::RgbImage::from_pixel(width, height, image::Rgb([255, 255, 255]));
+    let mut x = 0;
+    for p in &pictures {
+        image::imageops::replace(&mut sheet, p, x, 0);
+        x += i64::from(p.width()) + 8;
+    }
+    sheet.save(out).map_err(|e| e.to_string())
+}
+
+fn table(rows: &[Row]) -> String {
+    let mut t = String::from(
+        "| sample | tool | wall s | CPU s | peak MB | patch energy | coarse | colour χ² | contrast | collapse | smear | copy |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let (p, c) = (&r.picture, r.coords);
+        let coord =
+            |f: fn(&CoordQuality) -> f64| c.as_ref().map_or("–".to_string(), |c| format!("{:.4}", f(c)));
+        let _ = writeln!(
+            t,
+            "| {} | {} | {:.1} | {:.1} | {:.0} | {:.5} | {:.5} | {:.4} | {:.3} | {} | {} | {} |",
+            r.sample,
+            r.tool,
+            r.cost.wall,
+            r.cost.cpu,
+            r.cost.peak_mb,
+            p.patch_energy,
+            p.patch_energy_coarse,
+            p.colour_chi2,
+            p.contrast,
+            coord(|c| c.collapse),
+            coord(|c| c.smear),
+            coord(|c| c.copy)
+        );
+    }
+    t
+}
