@@ -10,11 +10,11 @@ use serde::Serialize;
 /// mesh's one-ring at one-texel edges.
 const ADJACENT: f32 = 1.5;
 
-/// Whether an offset between adjacent vertices spans at least one texel (rounded), so that
-/// a coherent copy would give them different texels. Two mesh vertices half a texel apart
-/// may rightly share one.
+/// Whether an offset between adjacent vertices spans a whole texel along s or t, so that
+/// even a perfect copy, rounding each vertex to its nearest texel, gives them different
+/// texels. Mesh vertices 0.9 texels apart diagonally may rightly share one.
 fn spans_a_texel([dx, dy]: [f32; 2]) -> bool {
-    dx.round() != 0.0 || dy.round() != 0.0
+    dx.abs().max(dy.abs()) >= 1.0 - 1e-4
 }
 
 /// What the coordinate map says about the result.
@@ -24,8 +24,8 @@ pub struct CoordQuality {
     /// 0.01; above 0.05 a few texels are stamped everywhere (visible as repeated blobs or
     /// flat areas).
     pub collapse: f64,
-    /// Share of adjacent output pairs (at least a texel apart, rounded) that copy the very
-    /// same texel. A coherent copy gives 0; anything above 0.01 shows as one-colour streaks
+    /// Share of adjacent output pairs (a whole texel or more apart along s or t) that copy
+    /// the very same texel. A coherent copy gives 0; anything above 0.01 shows as one-colour streaks
     /// or blocks.
     pub smear: f64,
     /// The largest patch copied contiguously, as a share of the sample's area: around 1 or
@@ -64,8 +64,8 @@ pub fn collapse(uv: &[[i32; 2]], (width, height): (usize, usize)) -> f64 {
     uses[..top].iter().map(|&u| u as f64).sum::<f64>() / uv.len().max(1) as f64
 }
 
-/// Share of adjacent pairs a texel or more apart (each direction counted) with identical
-/// coordinates.
+/// Share of adjacent pairs a whole texel or more apart along s or t (each direction
+/// counted) with identical coordinates.
 pub fn smear(level: &TargetLevel, state: &State) -> f64 {
     let (mut pairs, mut same, mut scratch) = (0usize, 0usize, Vec::new());
     for v in 0..level.vertices {

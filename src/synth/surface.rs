@@ -16,7 +16,7 @@ use crate::mesh::Mesh;
 use crate::{Error, Result};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::VecDeque;
 use std::f32::consts::TAU;
 
 /// No face across this edge (a boundary, or a non-manifold edge, where flattening stops).
@@ -47,10 +47,13 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
     let reach = r as f32 * texel * std::f32::consts::SQRT_2;
     let per_vertex: Vec<(Vec<Slot>, Vec<Shift>)> = (0..mesh.vertex_count())
         .into_par_iter()
-        .map(|v| {
-            let patch = flatten(mesh, frames, &topology, v as u32, reach);
-            (resample(mesh, &patch, v as u32, texel, r), patch_shifts(&patch, texel, r))
-        })
+        .map_init(
+            || Patch::new(mesh),
+            |patch, v| {
+                flatten(mesh, frames, &topology, v as u32, reach, patch);
+                (resample(mesh, patch, v as u32, texel, r), patch_shifts(patch, texel, r))
+            },
+        )
         .collect();
     let mut slots = Vec::with_capacity(mesh.vertex_count() * template * template);
     let (mut shift_start, mut shifts) = (vec![0u32], Vec::new());
@@ -127,42 +130,78 @@ fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
     out
 }
 
-/// A flattened patch around one vertex, in (s, t) coordinates with the vertex at 0.
+/// A flattened patch around one vertex, in (s, t) coordinates with the vertex at 0. One is
+/// reused for every vertex a thread flattens: per-mesh arrays stamped with the patch's
+/// generation stand in for maps and sets (hashing was most of the templates' time).
 struct Patch {
     /// Faces in the order they were reached (the vertex's own faces first).
     faces: Vec<u32>,
     /// Vertices in the order they were placed (the centre first).
     order: Vec<u32>,
-    uv: HashMap<u32, Vec2>,
+    generation: u32,
+    /// Per mesh vertex: the generation that placed it, and where.
+    placed: Vec<u32>,
+    uv: Vec<Vec2>,
+    /// Per mesh face: the generation that reached it.
+    reached: Vec<u32>,
 }
 
 impl Patch {
+    fn new(mesh: &Mesh) -> Self {
+        Patch {
+            faces: Vec::new(),
+            order: Vec::new(),
+            generation: 0,
+            placed: vec![0; mesh.vertex_count()],
+            uv: vec![Vec2::ZERO; mesh.vertex_count()],
+            reached: vec![0; mesh.face_count()],
+        }
+    }
+
+    /// Empties the patch for the next vertex.
+    fn restart(&mut self) {
+        self.faces.clear();
+        self.order.clear();
+        self.generation += 1;
+    }
+
+    fn uv_of(&self, vertex: u32) -> Option<Vec2> {
+        (self.placed[vertex as usize] == self.generation).then(|| self.uv[vertex as usize])
+    }
+
     fn corners(&self, mesh: &Mesh, f: u32) -> Option<[Vec2; 3]> {
         let t = mesh.triangles()[f as usize];
-        Some([*self.uv.get(&t[0])?, *self.uv.get(&t[1])?, *self.uv.get(&t[2])?])
+        Some([self.uv_of(t[0])?, self.uv_of(t[1])?, self.uv_of(t[2])?])
     }
 
     fn place(&mut self, vertex: u32, at: Vec2) {
         // A vertex reached twice (around a cone or a handle) keeps its first placement.
-        if let std::collections::hash_map::Entry::Vacant(e) = self.uv.entry(vertex) {
-            e.insert(at);
+        if self.placed[vertex as usize] != self.generation {
+            self.placed[vertex as usize] = self.generation;
+            self.uv[vertex as usize] = at;
             self.order.push(vertex);
         }
     }
+
+    /// Marks face `f` reached; false if it already was.
+    fn reach(&mut self, f: u32) -> bool {
+        let first = self.reached[f as usize] != self.generation;
+        self.reached[f as usize] = self.generation;
+        first
+    }
 }
 
-/// Flattens the triangles around `v` (Tong §5.1 after Turk / Wei-Levoy): the one-ring by a
-/// discrete exponential map, then breadth-first across shared edges, each new vertex
-/// placed rigidly against the edge it was reached over, until the triangles lie beyond
-/// `reach` (plus one edge) of `v`.
-fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32) -> Patch {
-    let mut patch = Patch { faces: Vec::new(), order: Vec::new(), uv: HashMap::new() };
+/// Flattens the triangles around `v` into `patch` (Tong §5.1 after Turk / Wei-Levoy): the
+/// one-ring by a discrete exponential map, then breadth-first across shared edges, each new
+/// vertex placed rigidly against the edge it was reached over, until the triangles lie
+/// beyond `reach` (plus one edge) of `v`.
+fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32, patch: &mut Patch) {
+    patch.restart();
     patch.place(v, Vec2::ZERO);
-    unfold_ring(mesh, frames, topology, v, &mut patch);
-    let mut seen: HashSet<u32> = HashSet::new();
+    unfold_ring(mesh, frames, topology, v, patch);
     let mut queue: VecDeque<u32> = VecDeque::new();
     for &f in topology.faces_of(v) {
-        if patch.corners(mesh, f).is_some() && seen.insert(f) {
+        if patch.corners(mesh, f).is_some() && patch.reach(f) {
             queue.push_back(f);
         }
     }
@@ -173,13 +212,12 @@ fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32
             continue;
         }
         for &g in &topology.across[f as usize] {
-            if g != NO_FACE && seen.insert(g) {
-                place_apex(mesh, g, &mut patch);
+            if g != NO_FACE && patch.reach(g) {
+                place_apex(mesh, g, patch);
                 queue.push_back(g);
             }
         }
     }
-    patch
 }
 
 /// Whether a flattened triangle may still reach into the template, so that its
@@ -244,10 +282,10 @@ fn place_apex(mesh: &Mesh, g: u32, patch: &mut Patch) {
     let p = mesh.positions();
     for k in 0..3 {
         let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-        if patch.uv.contains_key(&c) {
+        if patch.uv_of(c).is_some() {
             continue;
         }
-        let (Some(&pa), Some(&pb)) = (patch.uv.get(&a), patch.uv.get(&b)) else { continue };
+        let (Some(pa), Some(pb)) = (patch.uv_of(a), patch.uv_of(b)) else { continue };
         let (ab, ac) = (p[b as usize] - p[a as usize], p[c as usize] - p[a as usize]);
         let direction = (pb - pa).try_normalize().unwrap_or(Vec2::X);
         let turn = Vec2::from_angle(ab.angle_between(ac));
@@ -326,7 +364,7 @@ fn patch_shifts(patch: &Patch, texel: f32, r: usize) -> Vec<Shift> {
         .order
         .iter()
         .filter_map(|&u| {
-            let c = *patch.uv.get(&u)?;
+            let c = patch.uv_of(u)?;
             let offset = [c.x / texel, -c.y / texel];
             (offset[0].abs() <= limit && offset[1].abs() <= limit).then_some((u, offset))
         })
