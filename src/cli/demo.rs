@@ -137,7 +137,7 @@ fn analyse_and_synthesize(
     );
     let sample = Sample::open(analysis_dir, params.levels)?;
     let synth = SynthParams { search: Search::KCoherence { k: params.k }, ..SynthParams::default() };
-    let plane = synthesize_plane(&sample, (192, 192), &synth, bars)?;
+    let plane = synthesize_plane(&sample, (192, 192), false, &synth, bars)?;
     write_plane(
         &plane,
         analysis_dir,

@@ -109,6 +109,9 @@ fn print_table(args: &EvalArgs, e: &Evaluation) {
             p.probe.name, p.probe.view[0], p.probe.view[1], p.probe.light[0], p.probe.light[1],
             q.patch_energy, q.patch_energy_coarse, q.colour_chi2, q.contrast
         );
+        if let Some(seam) = p.wrap_seam_energy {
+            println!("    across the wrap edge (tileable output): patch energy {seam:.5}");
+        }
     }
     if let Some(c) = &e.coords {
         println!(

@@ -43,6 +43,11 @@ pub struct SynthArgs {
     /// With --plane: also show the result under this light θ,φ (see --view).
     #[arg(long = "light", value_name = "θ,φ", value_parser = super::shots::parse_angles, requires = "plane")]
     lights: Vec<(f32, f32)>,
+    /// With --plane: make the result tile seamlessly (its neighbourhoods wrap around the
+    /// plane's edges), for use as a repeating texture; eval then reports the patch energy
+    /// across the wrap edge as `wrap_seam_energy`.
+    #[arg(long, requires = "plane")]
+    tileable_output: bool,
     /// Output: a binary PLY for a mesh, a directory for --plane.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
@@ -100,6 +105,10 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
 }
 
 pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
+    // clap drops `requires = "plane"` once MESH (which conflicts with --plane) is given.
+    if args.mesh.is_some() && (args.tileable_output || !args.views.is_empty() || !args.lights.is_empty()) {
+        return Err(usage("--tileable-output, --view and --light need --plane"));
+    }
     check_target(&args.output, args.force)?;
     if let Some(report) = &args.report {
         check_target(report, true)?;
@@ -135,7 +144,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
             surface(&args, mesh, &sample, &params, density, levels, &mut params_json, bars)?
         }
         (None, Some(size)) => {
-            let result = synthesize_plane(&sample, size, &params, bars)?;
+            let result = synthesize_plane(&sample, size, args.tileable_output, &params, bars)?;
             let probes = shown_probes(&args)?;
             let written =
                 write_plane(&result, &args.analysis, &probes, params_json.clone(), &args.output, args.force)?;

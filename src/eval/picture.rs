@@ -99,6 +99,16 @@ pub fn patch_energy(result: &Picture, sample: &Picture, stride: usize, tileable:
     nearest_patch_energy(&patch_matrix(result, &positions), sample, tileable)
 }
 
+/// [`patch_energy`] of the result's patches that cross its wrap edge (all of them, at every
+/// pixel along the edges): how well copies of a tileable result join. Compare with the
+/// result's `patch_energy`; a plain plane joins at random and scores far above it.
+pub fn wrap_seam_energy(result: &Picture, sample: &Picture, tileable: bool) -> f64 {
+    let crosses = |x: usize, y: usize| x + PATCH_SIDE > result.width || y + PATCH_SIDE > result.height;
+    let positions: Vec<(usize, usize)> =
+        patch_positions(result, 1, true).into_iter().filter(|&(x, y)| crosses(x, y)).collect();
+    nearest_patch_energy(&patch_matrix(result, &positions), sample, tileable)
+}
+
 /// Mean over the rows of `queries` (7×7×3 patches laid out as [`patch_matrix`] lays them
 /// out) of the squared difference per value to the nearest patch of `sample`. NaN when
 /// there are no queries or the sample is smaller than a patch.

@@ -3,8 +3,8 @@
 
 use super::coords::{coord_quality, CoordQuality};
 use super::picture::{
-    colour_chi2, contrast, nearest_patch_energy, picture_quality, Picture, PictureQuality, PATCH_SIDE,
-    PATCH_STRIDE,
+    colour_chi2, contrast, nearest_patch_energy, picture_quality, wrap_seam_energy, Picture, PictureQuality,
+    PATCH_SIDE, PATCH_STRIDE,
 };
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
@@ -12,7 +12,7 @@ use crate::synth::engine::State;
 use crate::synth::plane::read_plane;
 use crate::synth::surface::surface_level;
 use crate::synth::surface_map::SurfaceMap;
-use crate::synth::target::{grid_levels, Slot, TargetLevel, OUTSIDE};
+use crate::synth::target::{wrapping_grid_levels, Slot, TargetLevel, OUTSIDE};
 use crate::synth::Sample;
 use crate::{Error, Result};
 use serde::Serialize;
@@ -40,22 +40,30 @@ pub struct ProbeQuality {
     pub probe: Probe,
     #[serde(flatten)]
     pub quality: PictureQuality,
+    /// Tileable planes (`synth --tileable-output`) only: the patch energy of the result's
+    /// patches that cross its wrap edge, i.e. of the joins between repeated copies. At or
+    /// below `patch_energy` when the result tiles without a visible seam.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wrap_seam_energy: Option<f64>,
 }
 
 /// A plane result directory (from `synth --plane`) against the analysis in `analysis_dir`.
 pub fn evaluate_plane(analysis_dir: &Path, plane_dir: &Path) -> Result<Evaluation> {
     let (width, height, state, manifest) = read_plane(plane_dir)?;
     let neighborhood = manifest["params"]["neighborhood"].as_u64().unwrap_or(5) as usize;
-    let level = grid_levels(width, height, 1, neighborhood, 3).remove(0);
     let images = SampleImages::open(analysis_dir)?;
     let (sample, tileable) = texton_level(analysis_dir, &state, plane_dir)?;
+    let tiles = manifest["tileable_output"].as_bool().unwrap_or(false);
+    let level = wrapping_grid_levels(width, height, 1, neighborhood, 3, tiles).remove(0);
     let probes = images
         .default_probes()
         .into_iter()
         .map(|probe| {
             let result = images.through(probe.image, width, height, &state.uv);
-            let quality = picture_quality(&result, &images.picture(probe.image), tileable);
-            ProbeQuality { probe, quality }
+            let sample_picture = images.picture(probe.image);
+            let quality = picture_quality(&result, &sample_picture, tileable);
+            let wrap_seam_energy = tiles.then(|| wrap_seam_energy(&result, &sample_picture, tileable));
+            ProbeQuality { probe, quality, wrap_seam_energy }
         })
         .collect();
     Ok(Evaluation {
@@ -90,7 +98,7 @@ pub fn evaluate_surface(
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
             };
-            ProbeQuality { probe, quality }
+            ProbeQuality { probe, quality, wrap_seam_energy: None }
         })
         .collect();
     Ok(Evaluation {
@@ -119,7 +127,7 @@ pub fn evaluate_picture(analysis_dir: &Path, path: &Path) -> Result<Evaluation> 
         vertices: width * height,
         coords: None,
         textons: None,
-        probes: vec![ProbeQuality { probe, quality }],
+        probes: vec![ProbeQuality { probe, quality, wrap_seam_energy: None }],
     })
 }
 

@@ -14,7 +14,7 @@
 //! | `result_<kind>.png\|exr` | each material map of the analysis copied through `uv` ([`crate::maps`]) |
 
 use super::engine::State;
-use super::target::grid_levels;
+use super::target::wrapping_grid_levels;
 use super::{synthesize, LevelReport, Sample, SynthParams};
 use crate::analysis::images::{Probe, SampleImages};
 use crate::analysis::knn::parent_size;
@@ -33,14 +33,18 @@ pub const MANIFEST: &str = "plane.json";
 pub struct PlaneResult {
     pub width: usize,
     pub height: usize,
+    /// The plane was synthesized on a wrapping grid: it repeats without a seam.
+    pub tiles: bool,
     pub state: State,
     pub reports: Vec<LevelReport>,
 }
 
-/// Synthesizes a `width × height` plane from `sample`.
+/// Synthesizes a `width × height` plane from `sample`; with `tiles`, on a grid whose edges
+/// wrap, so that copies of the result laid side by side join without a seam.
 pub fn synthesize_plane(
     sample: &Sample,
     (width, height): (usize, usize),
+    tiles: bool,
     params: &SynthParams,
     progress: &dyn Progress,
 ) -> Result<PlaneResult> {
@@ -49,15 +53,16 @@ pub fn synthesize_plane(
             "--plane {width}x{height}: sides must be at least 1 and the area at most 2^26"
         )));
     }
-    let targets = grid_levels(
+    let targets = wrapping_grid_levels(
         width,
         height,
         sample.levels.len(),
         params.neighborhood,
         parent_size(params.neighborhood),
+        tiles,
     );
     let (state, reports) = synthesize(&targets, sample, params, progress)?;
-    Ok(PlaneResult { width, height, state, reports })
+    Ok(PlaneResult { width, height, tiles, state, reports })
 }
 
 /// Writes `result` (synthesized from the analysis in `analysis_dir`) into the directory `out`,
@@ -114,6 +119,7 @@ pub fn write_plane(
         "analysis_fingerprint": fingerprint,
         "width": w,
         "height": h,
+        "tileable_output": result.tiles,
         "params": params_json,
         "shown": shown,
         "levels": result.reports,

@@ -44,8 +44,10 @@ pub type Shift = (u32, [f32; 2]);
 #[derive(Clone, Debug, PartialEq)]
 pub enum Neighbourhoods {
     /// A regular `width × height` grid (plane mode): computed on demand, since they are the
-    /// grid itself around each vertex. Template pixels past the grid's edge are not compared.
-    Grid { width: usize, height: usize, template: usize },
+    /// grid itself around each vertex. Template pixels past the grid's edge are not compared,
+    /// unless the grid `wraps` (a tileable output): then its left edge continues its right
+    /// edge and its top its bottom, so the result repeats without a seam.
+    Grid { width: usize, height: usize, template: usize, wraps: bool },
     /// A mesh: resampled from flattened patches and stored.
     Mesh {
         template: usize,
@@ -72,10 +74,11 @@ impl Neighbourhoods {
                 let n = template * template;
                 &slots[v * n..(v + 1) * n]
             }
-            &Neighbourhoods::Grid { width, height, template } => {
+            &Neighbourhoods::Grid { width, height, template, wraps } => {
                 scratch.clear();
-                scratch
-                    .extend(grid_window(v, width, height, template).map(|p| p.map_or(Slot::NONE, Slot::at)));
+                scratch.extend(
+                    grid_window(v, width, height, template, wraps).map(|p| p.map_or(Slot::NONE, Slot::at)),
+                );
                 scratch
             }
         }
@@ -87,28 +90,38 @@ impl Neighbourhoods {
             Neighbourhoods::Mesh { shift_start, shifts, .. } => {
                 &shifts[shift_start[v] as usize..shift_start[v + 1] as usize]
             }
-            &Neighbourhoods::Grid { width, height, template } => {
+            &Neighbourhoods::Grid { width, height, template, wraps } => {
                 let r = (template / 2) as f32;
                 scratch.clear();
-                scratch.extend(grid_window(v, width, height, template).enumerate().filter_map(|(i, p)| {
-                    let offset = [(i % template) as f32 - r, (i / template) as f32 - r];
-                    p.map(|p| (p, offset))
-                }));
+                scratch.extend(grid_window(v, width, height, template, wraps).enumerate().filter_map(
+                    |(i, p)| {
+                        let offset = [(i % template) as f32 - r, (i / template) as f32 - r];
+                        p.map(|p| (p, offset))
+                    },
+                ));
                 scratch
             }
         }
     }
 }
 
-/// The grid vertices of v's `template × template` window, row-major; `None` past the edge.
-fn grid_window(v: usize, width: usize, height: usize, template: usize) -> impl Iterator<Item = Option<u32>> {
+/// The grid vertices of v's `template × template` window, row-major; `None` past the edge
+/// of a grid that does not wrap.
+fn grid_window(
+    v: usize,
+    width: usize,
+    height: usize,
+    template: usize,
+    wraps: bool,
+) -> impl Iterator<Item = Option<u32>> {
     let r = (template / 2) as i64;
+    let (w, h) = (width as i64, height as i64);
     let (x, y) = ((v % width) as i64, (v / width) as i64);
     (-r..=r).flat_map(move |dy| {
         (-r..=r).map(move |dx| {
-            let (sx, sy) = (x + dx, y + dy);
-            ((0..width as i64).contains(&sx) && (0..height as i64).contains(&sy))
-                .then(|| (sy * width as i64 + sx) as u32)
+            let (sx, sy) =
+                if wraps { ((x + dx).rem_euclid(w), (y + dy).rem_euclid(h)) } else { (x + dx, y + dy) };
+            ((0..w).contains(&sx) && (0..h).contains(&sy)).then(|| (sy * w + sx) as u32)
         })
     })
 }
@@ -172,6 +185,20 @@ pub fn grid_levels(
     template: usize,
     parent_template: usize,
 ) -> Vec<TargetLevel> {
+    wrapping_grid_levels(width, height, levels, template, parent_template, false)
+}
+
+/// [`grid_levels`], on grids that wrap around when `wraps` (every level, so that the coarse
+/// structure repeats too; an odd side makes the coarser wrap half a texel off, which the
+/// finer levels mend).
+pub fn wrapping_grid_levels(
+    width: usize,
+    height: usize,
+    levels: usize,
+    template: usize,
+    parent_template: usize,
+    wraps: bool,
+) -> Vec<TargetLevel> {
     let sizes: Vec<(usize, usize)> =
         std::iter::successors(Some((width, height)), |&(w, h)| Some((w.div_ceil(2), h.div_ceil(2))))
             .take(levels)
@@ -179,7 +206,8 @@ pub fn grid_levels(
     (0..levels)
         .map(|l| {
             let (w, h) = sizes[l];
-            let mut level = TargetLevel::new(w * h, Neighbourhoods::Grid { width: w, height: h, template });
+            let mut level =
+                TargetLevel::new(w * h, Neighbourhoods::Grid { width: w, height: h, template, wraps });
             if let Some(&(pw, ph)) = sizes.get(l + 1) {
                 level.parents = (0..w * h)
                     .map(|v| {
@@ -190,7 +218,7 @@ pub fn grid_levels(
                     .collect();
                 level.parent_template = parent_template;
                 level.parent_neighbourhoods =
-                    Some(Neighbourhoods::Grid { width: pw, height: ph, template: parent_template });
+                    Some(Neighbourhoods::Grid { width: pw, height: ph, template: parent_template, wraps });
             }
             level
         })
@@ -220,5 +248,21 @@ mod tests {
         assert_eq!(l0.parents[9].offset, [1.0, 1.0]);
         assert_eq!(l0.parent_slots_of(9, &mut slots)[4], Slot::at(1));
         assert!(levels[1].parents.is_empty());
+    }
+
+    #[test]
+    fn wrapping_grids_continue_across_their_edges() {
+        let levels = wrapping_grid_levels(6, 4, 2, 3, 3, true);
+        let (mut slots, mut shifts) = (Vec::new(), Vec::new());
+        // Vertex (0, 0): up-left is (5, 3), the last vertex; every pixel is on the grid.
+        let corner = levels[0].slots_of(0, &mut slots).to_vec();
+        assert_eq!(corner[0], Slot::at(23));
+        assert_eq!(corner[3], Slot::at(5));
+        assert!(corner.iter().all(|&s| s != Slot::NONE));
+        assert_eq!(levels[0].shifts_of(0, &mut shifts).len(), 9);
+        assert!(levels[0].shifts_of(0, &mut shifts).contains(&(23, [-1.0, -1.0])));
+        // The coarse level and the parents' templates wrap too.
+        assert_eq!(levels[1].slots_of(0, &mut slots)[0], Slot::at(5));
+        assert_eq!(levels[0].parent_slots_of(0, &mut slots)[0], Slot::at(5));
     }
 }
