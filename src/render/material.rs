@@ -11,7 +11,8 @@ use half::f16;
 use std::path::Path;
 
 /// Images a (view, light) query blends, with weights. Weights sum to 1 when the point is
-/// lit (times n·l for a one-light sample, see [`Material::blend`]) and to 0 when not.
+/// lit (times n·l for a one-light sample, see [`Material::blend`]; times the cosine ratio
+/// for a light beyond the dome, see [`Material::light_weights`]) and to 0 when not.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blend16 {
     pub image: [u32; 16],
@@ -99,10 +100,27 @@ impl Material {
         Ok(material)
     }
 
+    /// The material of a BTF stack as loaded (not tileable).
+    pub fn from_btf(btf: &crate::btf::Btf) -> Result<Material> {
+        let pixels = btf.pixels().iter().map(|v| v.to_f32()).collect();
+        Material::new(btf.width(), btf.height(), pixels, btf.pairs().to_vec())
+    }
+
+    /// Opens an analysis directory (see [`Material::open`]) or, for any other path, loads a
+    /// BTF stack (a stack directory, a `btf.json` or a single image).
+    pub fn open_any(path: &Path, progress: &dyn crate::progress::Progress) -> Result<Material> {
+        if path.join(store::MANIFEST).is_file() {
+            return Material::open(path);
+        }
+        Material::from_btf(&crate::btf::load(path, &Default::default(), progress)?)
+    }
+
+    /// Sample width in texels.
     pub fn width(&self) -> usize {
         self.width
     }
 
+    /// Sample height in texels.
     pub fn height(&self) -> usize {
         self.height
     }
@@ -145,9 +163,44 @@ impl Material {
     }
 
     /// The 4 nearest sampled lights of a local light direction, weighted; `None` at or
-    /// below the horizon.
+    /// below the horizon. Beyond the dome's largest θ the light blends the outermost ring
+    /// ([`super::blend`]) and its weights are scaled by cos θ / cos θ_max: the outermost
+    /// images already hold the cosine of their own θ, and a plane receives that much less
+    /// light from further down. (A one-light sample is scaled by n·l instead.)
     pub fn light_weights(&self, light: Vec3) -> Option<Nearest4> {
-        (light.z > 0.0).then(|| self.lights.nearest4(light))
+        if light.z <= 0.0 {
+            return None;
+        }
+        let mut nl = self.lights.nearest4(light);
+        if self.lights.len() > 1 {
+            let ratio = self.lights.beyond_cosine_ratio(light);
+            nl.weight.iter_mut().for_each(|w| *w *= ratio);
+        }
+        Some(nl)
+    }
+
+    /// The sampled view directions.
+    pub fn view_index(&self) -> &DirectionIndex {
+        &self.views
+    }
+
+    /// The sampled light directions.
+    pub fn light_index(&self) -> &DirectionIndex {
+        &self.lights
+    }
+
+    /// The image taken under sampled view `view` and sampled light `light` (indices into
+    /// [`Material::view_index`] and [`Material::light_index`]), if the stack has it.
+    pub fn image_of(&self, view: u32, light: u32) -> Option<u32> {
+        self.image_of[view as usize * self.lights.len() + light as usize]
+    }
+
+    /// RGB of texel (x, y) of image `image`, with wrapping or clamping of out-of-range
+    /// texels as in the bilinear lookup.
+    pub fn pixel(&self, image: u32, x: i64, y: i64) -> Vec3 {
+        let o = image as usize * self.width * self.height * 3
+            + (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * 3;
+        Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
     }
 
     /// The 16 images of a view and a light selection; `cos_light` is the light's n·l,
@@ -175,7 +228,9 @@ impl Material {
             out = self.nearest_pair(nv, nl);
             present = 1.0;
         }
-        let cosine = if self.lights.len() == 1 { cos_light.max(0.0) } else { 1.0 };
+        // Beyond the dome the light weights sum to less than 1 (the cosine ratio): keep that.
+        let attenuation = nl.weight.iter().sum::<f32>().min(1.0);
+        let cosine = if self.lights.len() == 1 { cos_light.max(0.0) } else { attenuation };
         out.weight.iter_mut().for_each(|w| *w *= cosine / present);
         out
     }
@@ -303,7 +358,9 @@ mod tests {
             let view = Vec3::new(t.sin() * 0.3, 0.2, 1.0).normalize();
             let light = Vec3::new((3.0 * t).cos(), (3.0 * t).sin(), 0.2 + t).normalize();
             let b = m.blend(view, light);
-            assert!((b.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+            // Beyond the dome (θ > 75°) the weights sum to the cosine ratio.
+            let expected = (light.z / 75f32.to_radians().cos()).min(1.0);
+            assert!((b.weight.iter().sum::<f32>() - expected).abs() < 1e-5, "{light}");
         }
         assert_eq!(m.blend(Vec3::Z, Vec3::new(1.0, 0.0, -0.1).normalize()), Blend16::DARK);
     }
@@ -328,6 +385,32 @@ mod tests {
         // Continuous: halving the step halves the largest change. A jump would not shrink.
         let (coarse, fine) = (worst_step(10_000), worst_step(20_000));
         assert!(fine < 0.6 * coarse, "largest step {coarse} at 10k steps, {fine} at 20k");
+    }
+
+    #[test]
+    fn a_light_beyond_the_dome_is_never_brighter_than_the_outermost_ring() {
+        let pairs = DirectionSet::Ubo81.pairs();
+        let pixels = (0..pairs.len() * 12).map(|i| crate::seeded::unit(9, i as i64, 0, 0)).collect();
+        let m = Material::new(2, 2, pixels, pairs).unwrap();
+        let lights = m.light_index();
+        for view_index in [0u32, 17, 52, 80] {
+            let view = m.view_index().units()[view_index as usize];
+            for k in 0..200 {
+                let theta = (75.0 + 15.0 * crate::seeded::unit(10, k, 0, 0)).to_radians();
+                let phi = crate::seeded::unit(10, k, 1, 0) * std::f32::consts::TAU;
+                let light = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let b = m.blend(view, light);
+                for (u, v) in [(0.0, 0.0), (1.0, 0.0), (0.3, 0.8)] {
+                    let c = m.shade(&b, u, v);
+                    let brightest = lights
+                        .rim()
+                        .iter()
+                        .map(|&l| m.texel(m.image_of(view_index, l).unwrap(), u, v))
+                        .fold(Vec3::ZERO, Vec3::max);
+                    assert!(c.cmple(brightest + 1e-6).all(), "light θ={theta}: {c} > {brightest}");
+                }
+            }
+        }
     }
 
     #[test]
