@@ -57,7 +57,8 @@ fn main() -> btfsynth::Result<()> {
                 &material,
                 &tracer,
                 &shots[i],
-                RenderOptions { mode, shadows },
+                RenderOptions { mode, shadows, spp: 1, sun: 1.0 },
+                None,
             ));
         });
     }

@@ -62,7 +62,8 @@ fn the_identity_map_on_a_flat_quad_reproduces_the_sample_image() {
         let l = pair.light.unit();
         let shot = Shot { camera, light: Vec3::new(l.x, l.z, -l.y) };
         for mode in [Mode::Pixel, Mode::Vertex] {
-            let frame = render(&scene, &material, &tracer, &shot, RenderOptions { mode, shadows: true });
+            let options = RenderOptions { mode, spp: 1, ..RenderOptions::default() };
+            let frame = render(&scene, &material, &tracer, &shot, options, None);
             let image = &material.pixels()[i * w * h * 3..(i + 1) * w * h * 3];
             let worst = (0..w * h * 3)
                 .map(|k| (frame.rgba[(k / 3) * 4 + k % 3] - image[k]).abs())
@@ -119,7 +120,8 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
     camera.far = 40.0;
     camera.projection = Projection::Orthographic { half_height: 20.25 };
     let light = btfsynth::render::camera::world_direction(30.0, 0.0);
-    let frame = render(&scene, &material, &tracer, &Shot { camera, light }, RenderOptions::default());
+    let options = RenderOptions { spp: 1, ..RenderOptions::default() };
+    let frame = render(&scene, &material, &tracer, &Shot { camera, light }, options, None);
     let (mut shadowed, mut lit) = (0, 0);
     // The outermost pixels fall a hair beyond the plane's edge.
     for j in 1..80 {

@@ -102,7 +102,7 @@ fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
     let material = Material::open(&analysis)?;
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
-    render_sequence((&scene, &material), &plan, RenderOptions::default(), true, &mut writer, bars)?;
+    render_sequence((&scene, &material), &plan, RenderOptions::default(), None, true, &mut writer, bars)?;
     writer.finish()?;
     Ok(())
 }

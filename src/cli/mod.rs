@@ -6,6 +6,7 @@ mod eval;
 mod gen;
 mod info;
 mod progress;
+mod relight;
 mod remesh;
 mod render;
 mod shots;
@@ -52,6 +53,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Render a surface map on the GPU (wgpu): an interactive window, or --headless frames.
     View(view::ViewArgs),
+    /// The sample itself, rectified, under any view and light (or environment), measured or not.
+    Relight(relight::RelightArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
     Info(info::InfoArgs),
     /// Run the pipeline on bundled data into demo-out/.
@@ -81,6 +84,7 @@ pub fn main() -> ExitCode {
         Command::Remesh(args) => remesh::run(args, &bars),
         Command::Render(args) => render::run(args, &bars),
         Command::View(args) => view::run(args, &bars),
+        Command::Relight(args) => relight::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),
     };

@@ -61,6 +61,11 @@ impl Scene {
             .collect()
     }
 
+    /// Vertex `v`'s frame: s, t and n as world vectors.
+    pub fn frame(&self, v: usize) -> [Vec3; 3] {
+        [self.frames.s[v], self.frames.t[v], self.frames.n[v]]
+    }
+
     /// A world direction in vertex `v`'s (s, t, n) frame.
     pub fn to_local(&self, v: usize, d: Vec3) -> Vec3 {
         let f = &self.frames;
