@@ -1,6 +1,7 @@
-//! The sample images on the GPU: a 2D texture array of Rgba16Float atlases, several images
-//! per layer as tiles, because a BTF has thousands of images and an array has few layers
-//! (256 by default). The shader fetches texels with `textureLoad` and filters by hand.
+//! The sample images on the GPU: a 2D texture array of Rgba16Float atlases (Rgba32Float
+//! where the adapter cannot sample half floats), several images per layer as tiles,
+//! because a BTF has thousands of images and an array has few layers (256 by default). The
+//! shader fetches texels with `textureLoad` and filters by hand.
 
 use crate::render::Material;
 use crate::{Error, Result};
@@ -58,12 +59,14 @@ impl AtlasLayout {
     }
 }
 
-/// Uploads every image of `material` into a new texture array laid out as `layout`.
+/// Uploads every image of `material` into a new texture array laid out as `layout`, of
+/// `format` (Rgba16Float or Rgba32Float).
 pub fn upload(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     material: &Material,
     layout: &AtlasLayout,
+    format: wgpu::TextureFormat,
 ) -> wgpu::Texture {
     let (lw, lh) = layout.layer_size();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -72,17 +75,19 @@ pub fn upload(
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba16Float,
+        format,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
     let texels = (layout.width * layout.height) as usize;
+    let half = format == wgpu::TextureFormat::Rgba16Float;
     for (i, rgb) in material.pixels().chunks_exact(texels * 3).enumerate() {
-        let rgba: Vec<u16> = rgb
-            .chunks_exact(3)
-            .flat_map(|p| [p[0], p[1], p[2], 1.0])
-            .map(|c| f16::from_f32(c).to_bits())
-            .collect();
+        let rgba = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 1.0]);
+        let bytes: Vec<u8> = if half {
+            rgba.flat_map(|c| f16::from_f32(c).to_le_bytes()).collect()
+        } else {
+            rgba.flat_map(f32::to_le_bytes).collect()
+        };
         let (layer, x, y) = layout.place(i as u32);
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
@@ -91,10 +96,10 @@ pub fn upload(
                 origin: wgpu::Origin3d { x, y, z: layer },
                 aspect: wgpu::TextureAspect::All,
             },
-            bytemuck::cast_slice(&rgba),
+            &bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(layout.width * 8),
+                bytes_per_row: Some(layout.width * if half { 8 } else { 16 }),
                 rows_per_image: None,
             },
             wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
