@@ -61,8 +61,9 @@ impl From<DisplayArg> for Display {
 
 /// Some Vulkan drivers try to reach a Wayland compositor while listing devices, and
 /// libwayland then prints "error: XDG_RUNTIME_DIR is invalid or not set" although nothing is
-/// wrong. Offscreen rendering needs no display: with no session variables set, point the
-/// probe at a directory that holds no compositor socket, so it fails quietly.
+/// wrong. Offscreen rendering needs no display, and a window without WAYLAND_DISPLAY opens
+/// on X11: with no session variables set, point the probe at a directory that holds no
+/// compositor socket, so it fails quietly.
 fn quiet_wayland_probe() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir().join("btfsynth-no-display"));
@@ -73,6 +74,7 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     let plan = args.shots.plan()?;
     let (sun, environment) = args.lighting.lighting()?;
     let lighting = GpuLighting { sun, environment, shadows: !args.no_shadows };
+    quiet_wayland_probe();
     if !args.headless {
         if !args.save_dir.is_dir() {
             anyhow::bail!("--save-dir {}: not a directory", args.save_dir.display());
@@ -83,7 +85,6 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
         return Ok(viewer::run(scene, material, &plan, options)?);
     }
     let dir = args.out.output.clone().context("--headless renders into a directory: give -o DIR")?;
-    quiet_wayland_probe();
     let mut writer = SequenceWriter::new(&dir, &[args.out.format], args.out.force)?;
     let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
     let material = Material::open(&analysis)?;

@@ -147,17 +147,17 @@ impl Controls {
                 "LIGHT {:.0},{:.0}{}",
                 self.light.0,
                 self.light.1,
-                if self.paused { " (PAUSED)" } else { "" }
+                if self.paused { " PAUSED" } else { "" }
             )
         } else {
-            "NO DIRECTIONAL LIGHT".to_string()
+            "NO SUN".to_string()
         };
-        let env = if lighting.environment.is_some() { "  +ENV" } else { "" };
+        let env = if lighting.environment.is_some() { " +ENV" } else { "" };
         vec![
             format!("{fps:.1} FPS"),
             format!("{light}{env}"),
-            format!("VIEW {:.0},{:.0}  {mode}  {display}", self.view.0, self.view.1.rem_euclid(360.0)),
-            "S SAVE  B/T DISPLAY  M MODE  O OVERLAY".to_string(),
+            format!("VIEW {:.0},{:.0} {mode} {display}", self.view.0, self.view.1.rem_euclid(360.0)),
+            "S:SAVE B/T/M/O:TOGGLE".to_string(),
         ]
     }
 }

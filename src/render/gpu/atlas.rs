@@ -33,11 +33,18 @@ impl AtlasLayout {
                 "sample images of {width}x{height} do not fit this GPU's {max_dim}-texel textures"
             )));
         }
+        // GL guesses a texture's view dimension from its layer count (1: a plain 2D texture,
+        // 6 or a multiple of 6: cube maps), so spread the images over at least 2 layers and
+        // skip those counts.
         let count = count.max(1);
-        let tiles_x = (max_dim / width).min(count);
-        let tiles_y = (max_dim / height).min(count.div_ceil(tiles_x));
+        let per_layer_wanted = count.div_ceil(2);
+        let tiles_x = (max_dim / width).min(per_layer_wanted);
+        let tiles_y = (max_dim / height).min(per_layer_wanted.div_ceil(tiles_x));
         let per_layer = tiles_x * tiles_y;
-        let layers = count.div_ceil(per_layer);
+        let mut layers = count.div_ceil(per_layer).max(2);
+        if layers % 6 == 0 {
+            layers += 1;
+        }
         if layers > max_layers {
             return Err(Error::invalid(format!(
                 "{count} sample images of {width}x{height} need {layers} texture layers of {max_dim}² \
@@ -113,11 +120,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn few_images_share_one_compact_layer() {
+    fn few_images_share_two_compact_layers() {
         let a = AtlasLayout::new(5, (48, 32), 8192, 256).unwrap();
-        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (5, 1, 5, 1));
-        assert_eq!(a.layer_size(), (240, 32));
-        assert_eq!(a.place(4), (0, 192, 0));
+        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (3, 1, 3, 2));
+        assert_eq!(a.layer_size(), (144, 32));
+        assert_eq!(a.place(4), (1, 48, 0));
+        // One image still makes two layers (GL would take one layer for a plain 2D texture).
+        assert_eq!(AtlasLayout::new(1, (48, 32), 8192, 256).unwrap().layers, 2);
     }
 
     #[test]
@@ -135,6 +144,13 @@ mod tests {
             assert!(l < a.layers && x + 256 <= 8192 && y + 256 <= 8192);
             assert!(seen.insert((l, x, y)));
         }
+    }
+
+    #[test]
+    fn layer_counts_that_gl_takes_for_cube_maps_are_skipped() {
+        // 6 × 1024 images of 256²: six full layers would be a cube map to GL.
+        let a = AtlasLayout::new(6 * 1024, (256, 256), 8192, 256).unwrap();
+        assert_eq!(a.layers, 7);
     }
 
     #[test]
