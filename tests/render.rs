@@ -9,6 +9,8 @@ use btfsynth::mesh::Mesh;
 use btfsynth::render::ambient::AmbientCache;
 use btfsynth::render::cpu::{render, RenderOptions, Tracer};
 use btfsynth::render::environment::cell_solid_angle;
+use btfsynth::render::scene::Shadows;
+use btfsynth::render::shadow_map::{shadow_map_size, ShadowCaster};
 use btfsynth::render::{Camera, Environment, Material, Mode, Projection, Scene, Shot};
 use common::{assert_one_line_error, btfsynth, entries};
 use glam::{Vec2, Vec3};
@@ -66,7 +68,7 @@ fn the_identity_map_on_a_flat_quad_reproduces_the_sample_image() {
         for mode in [Mode::Pixel, Mode::Vertex] {
             let options = RenderOptions { mode, spp: 1, ..RenderOptions::default() };
             let frame = render(&scene, &material, &tracer, &shot, options, None);
-            let image = &material.pixels()[i * w * h * 3..(i + 1) * w * h * 3];
+            let image = material.image(i as u32);
             let worst = (0..w * h * 3)
                 .map(|k| (frame.rgba[(k / 3) * 4 + k % 3] - image[k]).abs())
                 .fold(0.0, f32::max);
@@ -221,12 +223,12 @@ fn relighting_with_kept_views_equals_full_vertex_shading() {
     let material = Material::new(w, h, pixels, pairs).unwrap();
     let scene = identity_grid((0, w as i32 - 1), (0, h as i32 - 1));
     let camera = Camera::framing(Vec3::ZERO, 5.0, Vec3::new(0.3, 1.0, 0.5), false, (16, 16));
-    let relighter = btfsynth::render::scene::Relighter::new(&scene, &material, &camera);
+    let relighter = btfsynth::render::scene::Relighter::new(&scene, &material, &camera, None);
     for (theta, phi) in [(10.0, 0.0), (50.0, 100.0), (80.0, 250.0), (120.0, 10.0)] {
         let light = btfsynth::render::camera::world_direction(theta, phi);
         let blends = scene.vertex_blends(&material, &Shot { camera, light });
         let expected = scene.vertex_colours(&material, &blends, None);
-        let got = relighter.colours(&material, light);
+        let got = relighter.colours(&material, light, Shadows::None);
         for (a, b) in got.iter().zip(&expected) {
             assert!((*a - *b).length() < 1e-5, "light {theta},{phi}: {a} vs {b}");
         }
@@ -292,16 +294,13 @@ fn a_uniform_sky_renders_a_flat_sample_as_the_cosine_weighted_mean_of_its_images
             cells[nearest] += std::f64::consts::TAU / columns as f64 * (z0 - z1) * ratio;
         }
     }
-    // The view straight down is view 0 of the dome; image i of it is light i.
-    let plane = w * h * 3;
+    // The view straight down is view 0 of the dome.
+    let images: Vec<Vec<f32>> =
+        (0..lights.len()).map(|l| material.image(material.image_of(0, l as u32).unwrap())).collect();
     let mut worst = 0.0f64;
-    for k in 0..plane {
-        let expected: f64 = (0..lights.len())
-            .map(|l| {
-                let image = material.image_of(0, l as u32).unwrap() as usize;
-                material.pixels()[image * plane + k] as f64 * cells[l] / std::f64::consts::PI
-            })
-            .sum();
+    for k in 0..w * h * 3 {
+        let expected: f64 =
+            (0..lights.len()).map(|l| images[l][k] as f64 * cells[l] / std::f64::consts::PI).sum();
         let got = frame.rgba[(k / 3) * 4 + k % 3] as f64;
         worst = worst.max((got - expected).abs());
     }
@@ -498,4 +497,63 @@ fn relight_shows_a_measured_pair_as_its_image_and_refuses_bad_angles() {
         "none.hdr",
     );
     assert_eq!(entries(dir.path()), before, "nothing written by the failed runs");
+}
+
+#[test]
+fn relighting_only_what_the_camera_can_see_keeps_every_visible_triangle_and_its_shadows() {
+    let plane = identity_grid((-20, 20), (-20, 20));
+    let (mut positions, mut triangles) = (plane.mesh.positions().to_vec(), plane.mesh.triangles().to_vec());
+    add_sphere(&mut positions, &mut triangles, Vec3::new(0.0, 8.0, 0.0), 5.0);
+    let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
+    let n = mesh.vertex_count();
+    let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
+    let uv = (0..n).map(|v| Vec2::new((v % 5) as f32, (v / 5 % 4) as f32)).collect();
+    let scene = Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0 };
+    let (w, h) = (5, 4);
+    let pairs = DirectionSet::Grid(16).pairs();
+    let pixels = (0..pairs.len() * w * h * 3).map(|i| btfsynth::seeded::unit(13, i as i64, 0, 0)).collect();
+    let material = Material::new(w, h, pixels, pairs).unwrap();
+    let tracer = Tracer::new(&scene.mesh);
+    let camera = Camera::framing(Vec3::new(0.0, 4.0, 0.0), 25.0, Vec3::new(0.2, 0.5, 1.0), false, (128, 128));
+    let relighter = btfsynth::render::scene::Relighter::new(&scene, &material, &camera, Some(&tracer));
+    assert!(relighter.relit() < n * 3 / 4, "{} of {n} vertices relit", relighter.relit());
+    let needed = scene.seen_triangle_corners(&camera, &tracer);
+    // Every triangle a pixel shows has all its corners relit.
+    for y in 0..128 {
+        for x in 0..128 {
+            let (origin, direction) = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            if let Some(hit) = tracer.closest(origin, direction) {
+                let corners = scene.mesh.triangles()[hit.triangle];
+                assert!(corners.iter().all(|&v| needed[v as usize]), "pixel ({x}, {y}) shows {corners:?}");
+            }
+        }
+    }
+    // The relit vertices have the colours of full vertex shading with shadow rays.
+    for light in [
+        btfsynth::render::camera::world_direction(30.0, 20.0),
+        btfsynth::render::camera::world_direction(60.0, 200.0),
+    ] {
+        let shot = Shot { camera, light };
+        let lit = btfsynth::render::cpu::vertex_lit(&scene, &tracer, light);
+        let expected = scene.vertex_colours(&material, &scene.vertex_blends(&material, &shot), Some(&lit));
+        let got = relighter.colours(&material, light, Shadows::Rays(&tracer));
+        let shadowed =
+            (0..n).filter(|&v| needed[v] && scene.normals()[v].dot(light) > 0.0 && !lit[v]).count();
+        assert!(shadowed > 20, "{shadowed} relit vertices in shadow");
+        for v in (0..n).filter(|&v| needed[v]) {
+            assert!((got[v] - expected[v]).length() < 1e-5, "vertex {v}: {} vs {}", got[v], expected[v]);
+        }
+        // A shadow map instead of rays: the same but for vertices within a texel of the
+        // sphere's shadow edge (where the light grazes the sphere: miss distance = radius).
+        let map = ShadowCaster::new(&scene.mesh).map(light, shadow_map_size(n));
+        let by_map = relighter.colours(&material, light, Shadows::Map(&map));
+        let differ: Vec<usize> =
+            (0..n).filter(|&v| (by_map[v] == Vec3::ZERO) != (got[v] == Vec3::ZERO)).collect();
+        for &v in &differ {
+            let to_centre = Vec3::new(0.0, 8.0, 0.0) - scene.mesh.positions()[v];
+            let miss = (to_centre - light * to_centre.dot(light)).length();
+            assert!((miss - 5.0).abs() < map.texel(), "vertex {v}: {miss} from the sphere's centre");
+        }
+        assert!(differ.len() * 10 < shadowed, "{} vertices differ, {shadowed} in shadow", differ.len());
+    }
 }

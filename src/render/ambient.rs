@@ -193,26 +193,27 @@ impl TexelRect {
 /// The environment-lit colour of one view blend over a rectangle of texels: Σ over the
 /// views and light cells of (view weight × cell weight) × image, row-major.
 pub fn lit_texels(material: &Material, views: &Nearest4, weights: &[Vec3], rect: TexelRect) -> Vec<Vec3> {
-    let mut out = vec![Vec3::ZERO; rect.area()];
-    let lights = weights.len() as u32;
+    let mut terms: Vec<(usize, Vec3)> = Vec::with_capacity(4 * weights.len());
     for a in 0..4 {
         let wv = views.weight[a];
         if wv <= 0.0 {
             continue;
         }
-        for light in 0..lights {
-            let w = weights[light as usize] * wv;
-            if w == Vec3::ZERO {
-                continue;
-            }
-            let Some(image) = material.image_of(views.index[a], light) else { continue };
-            for (k, texel) in out.iter_mut().enumerate() {
-                let (dx, dy) = ((k % rect.width as usize) as i64, (k / rect.width as usize) as i64);
-                *texel += w * material.pixel(image, rect.x as i64 + dx, rect.y as i64 + dy);
+        for (light, w) in weights.iter().enumerate() {
+            if *w != Vec3::ZERO {
+                if let Some(image) = material.image_of(views.index[a], light as u32) {
+                    terms.push((image as usize * 3, *w * wv));
+                }
             }
         }
     }
-    out
+    (0..rect.area())
+        .map(|k| {
+            let (dx, dy) = ((k % rect.width as usize) as i64, (k / rect.width as usize) as i64);
+            let block = material.texel_block(rect.x as i64 + dx, rect.y as i64 + dy);
+            terms.iter().map(|&(offset, w)| w * material.at(block + offset)).sum()
+        })
+        .collect()
 }
 
 /// Per vertex, the rectangle of texels covering every sample coordinate its triangles

@@ -59,8 +59,12 @@ struct Rim {
     theta_max: f32,
     /// Width of the fade band inside `theta_max`, in radians.
     fade: f32,
-    /// The directions within half a typical spacing of `theta_max`.
+    /// cos(theta_max − fade): queries with a smaller z are in the band or beyond.
+    band_cos: f32,
+    /// The directions within half a typical spacing of `theta_max`, by azimuth.
     members: Vec<u32>,
+    /// The members' azimuths in [0, 2π), ascending.
+    azimuths: Vec<f32>,
     is_member: Vec<bool>,
 }
 
@@ -72,8 +76,22 @@ impl Rim {
         let cap = std::f32::consts::TAU * (1.0 - theta_max.cos());
         let spacing = (cap / units.len() as f32).sqrt();
         let is_member: Vec<bool> = thetas.iter().map(|&t| t >= theta_max - 0.5 * spacing).collect();
-        let members = (0..units.len() as u32).filter(|&i| is_member[i as usize]).collect();
-        Rim { theta_max, fade: 0.25 * spacing, members, is_member }
+        let azimuth =
+            |i: u32| units[i as usize].y.atan2(units[i as usize].x).rem_euclid(std::f32::consts::TAU);
+        let mut members: Vec<u32> = (0..units.len() as u32).filter(|&i| is_member[i as usize]).collect();
+        members.sort_by(|&a, &b| azimuth(a).total_cmp(&azimuth(b)));
+        let azimuths = members.iter().map(|&i| azimuth(i)).collect();
+        let fade = 0.25 * spacing;
+        Rim { theta_max, fade, band_cos: (theta_max - fade).cos(), members, azimuths, is_member }
+    }
+
+    /// The rim members that can be among the 5 nearest rim directions of a query at azimuth
+    /// `phi`: the 5 on either side of it by azimuth (all of a small rim).
+    fn near(&self, phi: f32) -> impl Iterator<Item = u32> + '_ {
+        let n = self.members.len();
+        let (start, count) =
+            if n <= 10 { (0, n) } else { (self.azimuths.partition_point(|&a| a < phi) + n - 5, 10) };
+        (start..start + count).map(move |k| self.members[k % n])
     }
 
     /// The penalty added to the distance of a non-rim direction for a query at polar angle
@@ -126,7 +144,8 @@ impl DirectionIndex {
         self.rim.theta_max
     }
 
-    /// The directions on the outermost ring (those a query beyond the dome blends).
+    /// The directions on the outermost ring (those a query beyond the dome blends), by
+    /// azimuth.
     pub fn rim(&self) -> &[u32] {
         &self.rim.members
     }
@@ -174,9 +193,8 @@ impl DirectionIndex {
     /// the horizon) and their weights; beyond the dome, the rim's (see the module notes).
     pub fn nearest4(&self, query: Vec3) -> Nearest4 {
         let query = above_horizon(query);
-        let theta = query.z.clamp(-1.0, 1.0).acos();
-        if theta > self.rim.theta_max - self.rim.fade && self.rim.fade > 0.0 {
-            return self.nearest4_near_rim(query, theta);
+        if query.z < self.rim.band_cos && self.rim.fade > 0.0 {
+            return self.nearest4_near_rim(query, query.z.clamp(-1.0, 1.0).acos());
         }
         // Rank by dot product (the larger, the nearer); take angles of the five kept only.
         let mut best = [(f32::NEG_INFINITY, 0u32); 5];
@@ -228,7 +246,7 @@ impl DirectionIndex {
                 best[k] = (d, i);
             }
         };
-        self.rim.members.iter().for_each(|&i| consider(i));
+        self.rim.near(q.y.atan2(q.x).rem_euclid(std::f32::consts::TAU)).for_each(&mut consider);
         if penalty.is_finite() {
             self.cells[self.cell_of(q)].iter().for_each(|&i| consider(i));
         }
@@ -363,6 +381,16 @@ mod tests {
             let n = index.nearest4(q);
             for j in 0..4 {
                 assert!(n.weight[j] == 0.0 || index.rim().contains(&n.index[j]), "{q}: {n:?}");
+            }
+            // The same as the 5 nearest rim directions to the query moved onto θ_max.
+            let on_rim = spherical(theta_max, q.y.atan2(q.x));
+            let mut all: Vec<(f32, u32)> =
+                index.rim().iter().map(|&i| (angle(on_rim, index.units()[i as usize]), i)).collect();
+            all.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let brute = weights(&std::array::from_fn(|k| all[k]));
+            for j in 0..4 {
+                let w: f32 = (0..4).filter(|&m| n.index[m] == brute.index[j]).map(|m| n.weight[m]).sum();
+                assert!((w - brute.weight[j]).abs() < 1e-4, "{q}: {n:?} vs {brute:?}");
             }
             assert!((n.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
             let ratio = index.beyond_cosine_ratio(q);

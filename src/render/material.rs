@@ -8,6 +8,7 @@ use crate::btf::{directions, Direction, DirectionPair};
 use crate::{Error, Result};
 use glam::Vec3;
 use half::f16;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// Images a (view, light) query blends, with weights. Weights sum to 1 when the point is
@@ -26,10 +27,14 @@ impl Blend16 {
 
 /// A BTF sample ready for shading: f32 RGB images, direction indices and the table from
 /// (view, light) to image.
+///
+/// The pixels are kept texel-major: all images' values at one texel side by side. A blend
+/// reads its 16 images at the same texel (or the same four bilinear taps), so its reads fall
+/// in one small block instead of 16 image planes a fixed stride apart, which thrash the cache.
 pub struct Material {
     width: usize,
     height: usize,
-    /// `[n][height][width][3]` linear RGB.
+    /// `[height][width][n][3]` linear RGB.
     pixels: Vec<f32>,
     pairs: Vec<DirectionPair>,
     views: DirectionIndex,
@@ -50,6 +55,22 @@ impl Material {
                 pairs.len()
             )));
         }
+        Material::from_image_major(width, height, pairs, |i| pixels[i])
+    }
+
+    /// A material whose image-major value `i` (of `[n][height][width][3]`) is `value(i)`.
+    fn from_image_major(
+        width: usize,
+        height: usize,
+        pairs: Vec<DirectionPair>,
+        value: impl Fn(usize) -> f32 + Sync,
+    ) -> Result<Material> {
+        let (n, plane) = (pairs.len(), width * height * 3);
+        let pixels = (0..width * height)
+            .into_par_iter()
+            .flat_map_iter(|t| (0..n).flat_map(move |i| (0..3).map(move |c| (i, t, c))))
+            .map(|(i, t, c)| value(i * plane + t * 3 + c))
+            .collect();
         let views = directions::distinct(pairs.iter().map(|p| p.view));
         let lights = directions::distinct(pairs.iter().map(|p| p.light));
         let mut image_of = vec![None; views.len() * lights.len()];
@@ -94,16 +115,21 @@ impl Material {
             })
             .collect::<Result<Vec<_>>>()
             .map_err(|e| Error::format(analysis_dir.join("directions.npy"), e.to_string()))?;
-        let pixels = images.data.iter().map(|v| v.to_f32()).collect();
-        let mut material = Material::new(w, h, pixels, pairs)?;
+        if images.data.len() != n * h * w * 3 || n == 0 || w == 0 || h == 0 {
+            return Err(Error::format(
+                analysis_dir.join("images.npy"),
+                "no images, or fewer values than its shape",
+            ));
+        }
+        let mut material = Material::from_image_major(w, h, pairs, |i| images.data[i].to_f32())?;
         material.tileable = manifest.params.tileable;
         Ok(material)
     }
 
     /// The material of a BTF stack as loaded (not tileable).
     pub fn from_btf(btf: &crate::btf::Btf) -> Result<Material> {
-        let pixels = btf.pixels().iter().map(|v| v.to_f32()).collect();
-        Material::new(btf.width(), btf.height(), pixels, btf.pairs().to_vec())
+        let pixels = btf.pixels();
+        Material::from_image_major(btf.width(), btf.height(), btf.pairs().to_vec(), |i| pixels[i].to_f32())
     }
 
     /// Opens an analysis directory (see [`Material::open`]) or, for any other path, loads a
@@ -140,9 +166,15 @@ impl Material {
         &self.pairs
     }
 
-    /// All pixels, `[n][height][width][3]` linear RGB.
-    pub fn pixels(&self) -> &[f32] {
-        &self.pixels
+    /// Image `image`'s pixels, `[height][width][3]` linear RGB (a copy).
+    pub fn image(&self, image: u32) -> Vec<f32> {
+        let n = self.pairs.len();
+        (0..self.width * self.height)
+            .flat_map(|t| {
+                let o = (t * n + image as usize) * 3;
+                [self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]]
+            })
+            .collect()
     }
 
     /// The images to blend for a view and a light given in the local frame (x along s,
@@ -198,8 +230,16 @@ impl Material {
     /// RGB of texel (x, y) of image `image`, with wrapping or clamping of out-of-range
     /// texels as in the bilinear lookup.
     pub fn pixel(&self, image: u32, x: i64, y: i64) -> Vec3 {
-        let o = image as usize * self.width * self.height * 3
-            + (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * 3;
+        self.at(self.texel_block(x, y) + image as usize * 3)
+    }
+
+    /// Where texel (x, y)'s values start (wrapped or clamped into the sample).
+    pub fn texel_block(&self, x: i64, y: i64) -> usize {
+        (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * self.pairs.len() * 3
+    }
+
+    /// The RGB at value offset `o` of the texel-major pixels (a texel block plus 3 × image).
+    pub fn at(&self, o: usize) -> Vec3 {
         Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
     }
 
@@ -256,13 +296,13 @@ impl Material {
         self.filtered(image, &self.taps(u, v))
     }
 
-    /// The four bilinear taps at (u, v): pixel offsets within an image and their weights
-    /// (computed once and shared by the 16 images of a blend).
+    /// The four bilinear taps at (u, v): texel blocks and their weights (computed once and
+    /// shared by the 16 images of a blend).
     fn taps(&self, u: f32, v: f32) -> [(usize, f32); 4] {
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let at = |x: i64, y: i64| (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * 3;
+        let at = |x: i64, y: i64| self.texel_block(x, y);
         [
             (at(x0, y0), (1.0 - fx) * (1.0 - fy)),
             (at(x0 + 1, y0), fx * (1.0 - fy)),
@@ -272,12 +312,10 @@ impl Material {
     }
 
     fn filtered(&self, image: u32, taps: &[(usize, f32); 4]) -> Vec3 {
-        let base = image as usize * self.width * self.height * 3;
         let mut c = Vec3::ZERO;
-        for &(offset, weight) in taps {
+        for &(block, weight) in taps {
             if weight != 0.0 {
-                let o = base + offset;
-                c += weight * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+                c += weight * self.at(block + image as usize * 3);
             }
         }
         c
@@ -294,12 +332,11 @@ impl Material {
     /// The colour of a blend at texel (x, y) exactly (inside the sample): the vertex-mode
     /// lookup, without the bilinear weights.
     fn shade_texel(&self, blend: &Blend16, x: usize, y: usize) -> Vec3 {
-        let (plane, offset) = (self.width * self.height * 3, (y * self.width + x) * 3);
+        let block = (y * self.width + x) * self.pairs.len() * 3;
         let mut c = Vec3::ZERO;
         for k in 0..16 {
             if blend.weight[k] != 0.0 {
-                let o = blend.image[k] as usize * plane + offset;
-                c += blend.weight[k] * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+                c += blend.weight[k] * self.at(block + blend.image[k] as usize * 3);
             }
         }
         c

@@ -20,6 +20,7 @@ pub mod output;
 pub mod overlay;
 pub mod relight;
 pub mod scene;
+pub mod shadow_map;
 pub mod viewer;
 
 pub use camera::{Camera, Orbit, Projection, Shot, ShotPlan};

@@ -86,9 +86,9 @@ pub fn upload(
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    let texels = (layout.width * layout.height) as usize;
     let half = format == wgpu::TextureFormat::Rgba16Float;
-    for (i, rgb) in material.pixels().chunks_exact(texels * 3).enumerate() {
+    for i in 0..material.len() {
+        let rgb = material.image(i as u32);
         let rgba = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 1.0]);
         let bytes: Vec<u8> = if half {
             rgba.flat_map(|c| f16::from_f32(c).to_le_bytes()).collect()
