@@ -107,24 +107,16 @@ fn report(stack: &Btf, name: &str, keep: &dyn Fn(&DirectionPair) -> bool) -> btf
         }
     }
     println!("\n{name}: {} images kept, {} predicted", kept.len(), dropped.len());
-    println!(
-        "  {:<28} {:>8} {:>8} {:>8}   (PSNR in dB, peak 1)",
-        "pairs", PREDICTORS[0], PREDICTORS[1], PREDICTORS[2]
-    );
-    for c in 0..3 {
+    let header: String = PREDICTORS.iter().map(|p| format!(" {p:>8}")).collect();
+    println!("  {:<28}{header}  (PSNR in dB, peak 1)", "pairs");
+    for (c, class) in CLASSES.iter().enumerate() {
         if tally.counts[c] == 0 {
             continue;
         }
-        let psnr = |p: usize| -10.0 * (tally.sums[c][p] / tally.counts[c] as f64).log10();
-        println!(
-            "  {:<28} {:>8.2} {:>8.2} {:>8.2} {:>8.2}  ({} images)",
-            CLASSES[c],
-            psnr(0),
-            psnr(1),
-            psnr(2),
-            psnr(3),
-            tally.counts[c] / (3 * stack.width() * stack.height())
-        );
+        let psnr: String = (0..PREDICTORS.len())
+            .map(|p| format!(" {:>8.2}", -10.0 * (tally.sums[c][p] / tally.counts[c] as f64).log10()))
+            .collect();
+        println!("  {class:<28}{psnr}  ({} images)", tally.counts[c] / (3 * stack.width() * stack.height()));
     }
     Ok(())
 }

@@ -8,10 +8,11 @@
 //! call: on a machine shared with other work, CPU time ÷ cores is what the wall time would
 //! be with the cores to itself.
 
+use btfsynth::render::ambient::AmbientCache;
 use btfsynth::render::cpu::{render, vertex_lit, RenderOptions, Tracer};
 use btfsynth::render::scene::{open_surface, Relighter, Shadows};
 use btfsynth::render::shadow_map::{shadow_map_size, ShadowCaster};
-use btfsynth::render::{Material, Mode, Orbit, ShotPlan};
+use btfsynth::render::{Environment, Material, Mode, Orbit, ShotPlan};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -95,7 +96,7 @@ fn main() -> btfsynth::Result<()> {
         ("frame, pixel mode, no shadows", Mode::Pixel, false),
         ("frame, vertex mode, shadows", Mode::Vertex, true),
     ] {
-        time(&format!("{name} ({size}²)"), 3, &mut |i| {
+        time(&format!("{name} ({size}², 1 spp)"), 3, &mut |i| {
             std::hint::black_box(render(
                 &scene,
                 &material,
@@ -106,6 +107,23 @@ fn main() -> btfsynth::Result<()> {
             ));
         });
     }
+    time(&format!("frame, pixel mode, shadows ({size}², 4 spp)"), 3, &mut |i| {
+        std::hint::black_box(render(&scene, &material, &tracer, &shots[i], RenderOptions::default(), None));
+    });
+    let mut sky = AmbientCache::new(&scene, &material, Environment::sky(), true);
+    time("sky: first camera (cell shadow rays, patches)", 1, &mut |_| {
+        std::hint::black_box(sky.for_camera((&scene, &material), &shots[0].camera, Some(&tracer)));
+    });
+    time("sky: next camera (patches only)", 1, &mut |_| {
+        let mut camera = shots[0].camera;
+        camera.eye.x += 1e-3 * (camera.eye - camera.target).length();
+        std::hint::black_box(sky.for_camera((&scene, &material), &camera, Some(&tracer)));
+    });
+    let ambient = sky.for_camera((&scene, &material), &shots[0].camera, Some(&tracer)).0;
+    time(&format!("frame, sun and sky, shadows ({size}², 4 spp)"), 3, &mut |i| {
+        let options = RenderOptions::default();
+        std::hint::black_box(render(&scene, &material, &tracer, &shots[i], options, Some(ambient)));
+    });
     Ok(())
 }
 

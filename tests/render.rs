@@ -6,7 +6,7 @@ mod common;
 use btfsynth::btf::{DirectionPair, DirectionSet};
 use btfsynth::mesh::frames::Frames;
 use btfsynth::mesh::Mesh;
-use btfsynth::render::ambient::AmbientCache;
+use btfsynth::render::ambient::{Ambient, AmbientCache, AmbientLight, CellVisibility};
 use btfsynth::render::cpu::{render, RenderOptions, Tracer};
 use btfsynth::render::environment::cell_solid_angle;
 use btfsynth::render::scene::Shadows;
@@ -254,8 +254,8 @@ fn render_environment(
     mode: Mode,
 ) -> btfsynth::render::Frame {
     let tracer = Tracer::new(&scene.mesh);
-    let mut cache = AmbientCache::new(scene, material, environment, Some(&tracer));
-    let (ambient, _) = cache.for_camera(scene, material, &camera);
+    let mut cache = AmbientCache::new(scene, material, environment, true);
+    let (ambient, _) = cache.for_camera((scene, material), &camera, Some(&tracer));
     let options = RenderOptions { mode, spp: 1, sun: 0.0, ..RenderOptions::default() };
     render(scene, material, &tracer, &Shot { camera, light: Vec3::Y }, options, Some(ambient))
 }
@@ -299,8 +299,11 @@ fn a_uniform_sky_renders_a_flat_sample_as_the_cosine_weighted_mean_of_its_images
         (0..lights.len()).map(|l| material.image(material.image_of(0, l as u32).unwrap())).collect();
     let mut worst = 0.0f64;
     for k in 0..w * h * 3 {
-        let expected: f64 =
-            (0..lights.len()).map(|l| images[l][k] as f64 * cells[l] / std::f64::consts::PI).sum();
+        let expected: f64 = images
+            .iter()
+            .zip(&cells)
+            .map(|(image, cell)| image[k] as f64 * cell / std::f64::consts::PI)
+            .sum();
         let got = frame.rgba[(k / 3) * 4 + k % 3] as f64;
         worst = worst.max((got - expected).abs());
     }
@@ -556,4 +559,32 @@ fn relighting_only_what_the_camera_can_see_keeps_every_visible_triangle_and_its_
         }
         assert!(differ.len() * 10 < shadowed, "{} vertices differ, {shadowed} in shadow", differ.len());
     }
+}
+
+#[test]
+fn shading_the_environment_only_where_the_camera_may_look_changes_no_pixel() {
+    let plane = identity_grid((-12, 12), (-12, 12));
+    let (mut positions, mut triangles) = (plane.mesh.positions().to_vec(), plane.mesh.triangles().to_vec());
+    add_sphere(&mut positions, &mut triangles, Vec3::new(0.0, 6.0, 0.0), 4.0);
+    let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
+    let n = mesh.vertex_count();
+    let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
+    let uv = (0..n).map(|v| Vec2::new((v % 5) as f32 + 0.25, (v / 5 % 4) as f32)).collect();
+    let scene = Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0 };
+    let material = cosine_material(5, 4);
+    let tracer = Tracer::new(&scene.mesh);
+    let camera = Camera::framing(Vec3::new(0.0, 3.0, 0.0), 15.0, Vec3::new(0.3, 0.6, 1.0), false, (96, 96));
+    let shot = Shot { camera, light: btfsynth::render::camera::world_direction(50.0, 30.0) };
+    let mut cache = AmbientCache::new(&scene, &material, Environment::sky(), true);
+    let (culled, _) = cache.for_camera((&scene, &material), &camera, Some(&tracer));
+    let light = AmbientLight::new(&material, Environment::sky());
+    let mut visibility = CellVisibility::new(n, material.light_index().len());
+    visibility.trace(&scene, &material, &tracer, &vec![true; n]);
+    let full = Ambient::compute(&scene, &material, &light, &camera, (Some(&visibility), None));
+    assert!(culled.texels().iter().filter(|t| **t == Vec3::ZERO).count() > full.texels().len() / 4);
+    let options = RenderOptions::default();
+    let a = render(&scene, &material, &tracer, &shot, options, Some(culled));
+    let b = render(&scene, &material, &tracer, &shot, options, Some(&full));
+    assert!(a.rgba.iter().any(|&c| c > 0.0));
+    assert_eq!(a, b, "the same frame");
 }

@@ -37,6 +37,8 @@ use std::f32::consts::PI;
 /// the material's light cells.
 pub struct AmbientLight {
     environment: Environment,
+    /// The light cell of any local direction, from a table (no search per sample).
+    cells: CellTable,
     /// Per light cell, (1/π) ∫_cell (cosine ratio) dω: a uniform sky's weight per unit
     /// radiance. For a one-light sample, 1 (the cosine-weighted hemisphere over π).
     uniform_weights: Vec<f32>,
@@ -77,7 +79,7 @@ impl AmbientLight {
                 .map(|w| w as f32)
                 .collect()
         };
-        AmbientLight { environment, uniform_weights }
+        AmbientLight { environment, cells: CellTable::new(lights), uniform_weights }
     }
 
     /// The environment.
@@ -104,14 +106,15 @@ impl AmbientLight {
         let [s, t, n] = frame;
         for sample in &env.samples {
             let d = sample.direction;
-            let local = Vec3::new(d.dot(s), d.dot(t), d.dot(n));
-            if local.z <= 0.0 {
+            let z = d.dot(n);
+            if z <= 0.0 {
                 continue;
             }
+            let local = Vec3::new(d.dot(s), d.dot(t), z);
             if lights.len() == 1 {
                 weights[0] += sample.power * (local.z / PI);
             } else {
-                let cell = lights.nearest(local) as usize;
+                let cell = self.cells.cell(local);
                 weights[cell] += sample.power * (lights.beyond_cosine_ratio(local) / PI);
             }
         }
@@ -124,39 +127,80 @@ impl AmbientLight {
     }
 }
 
+/// The light cell of a local direction by table: an octahedral map of the hemisphere (the
+/// direction's x and y over |x| + |y| + z), 512 texels a side, each holding the nearest
+/// light to its centre. Only directions within a texel (about 0.2°) of a cell's edge can be
+/// given to the neighbouring cell, which moves a sample by less than its own extent.
+struct CellTable {
+    side: usize,
+    cells: Vec<u16>,
+}
+
+impl CellTable {
+    const SIDE: usize = 512;
+
+    fn new(lights: &super::blend::DirectionIndex) -> CellTable {
+        let side = Self::SIDE;
+        let cells = (0..side * side)
+            .into_par_iter()
+            .map(|k| {
+                let u = ((k % side) as f32 + 0.5) / side as f32 * 2.0 - 1.0;
+                let v = ((k / side) as f32 + 0.5) / side as f32 * 2.0 - 1.0;
+                let d = Vec3::new(u, v, (1.0 - u.abs() - v.abs()).max(0.0)).normalize();
+                lights.nearest(d) as u16
+            })
+            .collect();
+        CellTable { side, cells }
+    }
+
+    /// The cell of `d` (z > 0, any length).
+    fn cell(&self, d: Vec3) -> usize {
+        let sum = d.x.abs() + d.y.abs() + d.z;
+        let last = self.side as f32 - 1.0;
+        let texel = |c: f32| (((c / sum) * 0.5 + 0.5) * self.side as f32).clamp(0.0, last) as usize;
+        self.cells[texel(d.y) * self.side + texel(d.x)] as usize
+    }
+}
+
 /// Per vertex, which light cells' measured directions the model does not block: one bit per
-/// cell, one shadow ray each.
+/// cell, one shadow ray each, traced for a vertex the first time a camera needs it.
 pub struct CellVisibility {
     words_per_vertex: usize,
     bits: Vec<u64>,
+    traced: Vec<bool>,
 }
 
 impl CellVisibility {
-    /// Traces, for every vertex and light cell, a ray along the cell's measured direction
-    /// turned into the vertex's frame.
-    pub fn trace(scene: &Scene, material: &Material, tracer: &Tracer) -> CellVisibility {
-        let lights = material.light_index().units();
-        let words_per_vertex = lights.len().div_ceil(64);
-        let positions = scene.mesh.positions();
-        let bits = (0..positions.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .flat_map_iter(|v| {
-                let [s, t, n] = scene.frame(v);
-                let mut words = vec![0u64; words_per_vertex];
-                for (i, l) in lights.iter().enumerate() {
-                    let world = (s * l.x + t * l.y + n * l.z).normalize_or(n);
-                    if tracer.lit(positions[v], n, world) {
-                        words[i / 64] |= 1 << (i % 64);
-                    }
-                }
-                words
-            })
-            .collect();
-        CellVisibility { words_per_vertex, bits }
+    /// Nothing traced yet, for `vertices` vertices and `cells` light cells.
+    pub fn new(vertices: usize, cells: usize) -> CellVisibility {
+        let words_per_vertex = cells.div_ceil(64);
+        let bits = vec![0; vertices * words_per_vertex];
+        CellVisibility { words_per_vertex, bits, traced: vec![false; vertices] }
     }
 
-    /// True if light cell `cell` reaches vertex `v`.
+    /// Traces, for every vertex in `wanted` not yet traced and every light cell, a ray along
+    /// the cell's measured direction turned into the vertex's frame.
+    pub fn trace(&mut self, scene: &Scene, material: &Material, tracer: &Tracer, wanted: &[bool]) {
+        let lights = material.light_index().units();
+        let positions = scene.mesh.positions();
+        let words = self.words_per_vertex;
+        let chunks = self.bits.par_chunks_mut(words).zip(self.traced.par_iter_mut());
+        chunks.enumerate().with_min_len(256).for_each(|(v, (bits, traced))| {
+            if *traced || !wanted[v] {
+                return;
+            }
+            let [s, t, n] = scene.frame(v);
+            for (i, l) in lights.iter().enumerate() {
+                let world = (s * l.x + t * l.y + n * l.z).normalize_or(n);
+                if tracer.lit(positions[v], n, world) {
+                    bits[i / 64] |= 1 << (i % 64);
+                }
+            }
+            *traced = true;
+        });
+    }
+
+    /// True if light cell `cell` reaches vertex `v` (which must have been traced).
     pub fn visible(&self, v: usize, cell: usize) -> bool {
         self.bits[v * self.words_per_vertex + cell / 64] >> (cell % 64) & 1 == 1
     }
@@ -244,14 +288,15 @@ pub struct Ambient {
 }
 
 impl Ambient {
-    /// The patches of every vertex of `scene` seen by `camera` under `light`, with the
-    /// cells blocked in `visibility` (if given) removed.
+    /// The patches of the vertices of `scene` that `wanted` marks (all if `None`; the
+    /// others' texels are 0), seen by `camera` under `light`, with the cells blocked in
+    /// `visibility` (if given) removed.
     pub fn compute(
         scene: &Scene,
         material: &Material,
         light: &AmbientLight,
         camera: &Camera,
-        visibility: Option<&CellVisibility>,
+        (visibility, wanted): (Option<&CellVisibility>, Option<&[bool]>),
     ) -> Ambient {
         let rects = patch_rects(scene);
         let positions = scene.mesh.positions();
@@ -259,6 +304,9 @@ impl Ambient {
             .into_par_iter()
             .with_min_len(64)
             .map(|v| {
+                if wanted.is_some_and(|w| !w[v]) {
+                    return vec![Vec3::ZERO; rects[v].area()];
+                }
                 let frame = scene.frame(v);
                 let weights =
                     light.cell_weights(material, frame, |i| visibility.is_none_or(|vis| vis.visible(v, i)));
@@ -308,6 +356,11 @@ impl Ambient {
 
 /// The environment's shading of one scene, kept while the camera stays: what a sequence
 /// or a window recomputes only when the camera moves.
+///
+/// With shadows (a tracer), only the vertices a camera may show are shaded: the corners of
+/// triangles the camera sees ([`Scene::seen_triangle_corners`]) and of the triangles around
+/// those (a margin for samples off pixel centres); hidden vertices keep black patches. Their
+/// light cells' shadow rays are traced once, the first time a camera shows them.
 pub struct AmbientCache {
     light: AmbientLight,
     visibility: Option<CellVisibility>,
@@ -315,30 +368,47 @@ pub struct AmbientCache {
 }
 
 impl AmbientCache {
-    /// `environment` on `material`; with `tracer`, each light cell is shadowed per vertex
-    /// ([`CellVisibility`], traced now).
-    pub fn new(
-        scene: &Scene,
-        material: &Material,
-        environment: Environment,
-        tracer: Option<&Tracer>,
-    ) -> AmbientCache {
+    /// `environment` on `material`, with each light cell shadowed per vertex if `shadows`.
+    pub fn new(scene: &Scene, material: &Material, environment: Environment, shadows: bool) -> AmbientCache {
         let light = AmbientLight::new(material, environment);
-        let visibility = tracer.map(|t| CellVisibility::trace(scene, material, t));
+        let visibility =
+            shadows.then(|| CellVisibility::new(scene.mesh.vertex_count(), material.light_index().len()));
         AmbientCache { light, visibility, last: None }
     }
 
     /// The environment's shading seen by `camera`, and whether it was computed now (else it
-    /// is the last camera's).
-    pub fn for_camera(&mut self, scene: &Scene, material: &Material, camera: &Camera) -> (&Ambient, bool) {
+    /// is the last camera's). `tracer` (of the scene) is needed with shadows.
+    pub fn for_camera(
+        &mut self,
+        (scene, material): (&Scene, &Material),
+        camera: &Camera,
+        tracer: Option<&Tracer>,
+    ) -> (&Ambient, bool) {
         let fresh = self.last.as_ref().is_none_or(|(c, _)| c != camera);
         if fresh {
-            let ambient = Ambient::compute(scene, material, &self.light, camera, self.visibility.as_ref());
+            let wanted = tracer.map(|t| grow(scene, scene.seen_triangle_corners(camera, t)));
+            if let (Some(visibility), Some(tracer), Some(wanted)) = (&mut self.visibility, tracer, &wanted) {
+                visibility.trace(scene, material, tracer, wanted);
+            }
+            let visibility = self.visibility.as_ref().filter(|_| tracer.is_some());
+            let ambient =
+                Ambient::compute(scene, material, &self.light, camera, (visibility, wanted.as_deref()));
             self.last = Some((*camera, ambient));
         }
         let (_, ambient) = self.last.as_ref().expect("computed above");
         (ambient, fresh)
     }
+}
+
+/// `marked` and the corners of every triangle with a marked corner.
+fn grow(scene: &Scene, marked: Vec<bool>) -> Vec<bool> {
+    let mut out = marked.clone();
+    for tri in scene.mesh.triangles() {
+        if tri.iter().any(|&v| marked[v as usize]) {
+            tri.iter().for_each(|&v| out[v as usize] = true);
+        }
+    }
+    out
 }
 
 #[cfg(test)]

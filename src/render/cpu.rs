@@ -152,8 +152,8 @@ impl Shading<'_> {
                 self.options.sun * self.scene.shade_point(self.material, &self.blends, Mode::Pixel, point);
         }
         if let Some(ambient) = self.ambient {
-            for k in 0..3 {
-                let v = corners[k] as usize;
+            for (k, &v) in corners.iter().enumerate() {
+                let v = v as usize;
                 colour += hit.bary[k] * ambient.at(v, self.scene.predict_uv(v, hit.position));
             }
         }
@@ -264,15 +264,16 @@ impl<'a> Subject<'a> {
         shadows: bool,
     ) -> Subject<'a> {
         let tracer = Tracer::new(&scene.mesh);
-        let ambient =
-            environment.map(|e| AmbientCache::new(scene, material, e.clone(), shadows.then_some(&tracer)));
+        let ambient = environment.map(|e| AmbientCache::new(scene, material, e.clone(), shadows));
         let shots = plan.shots(scene.mesh.bounds());
         Subject { scene, tracer, shots, ambient }
     }
 
     fn render(&mut self, material: &Material, i: usize, options: RenderOptions) -> Frame {
         let shot = self.shots[i];
-        let ambient = self.ambient.as_mut().map(|a| a.for_camera(self.scene, material, &shot.camera).0);
+        let tracer = Some(&self.tracer);
+        let ambient =
+            self.ambient.as_mut().map(|a| a.for_camera((self.scene, material), &shot.camera, tracer).0);
         render(self.scene, material, &self.tracer, &shot, options, ambient)
     }
 }

@@ -198,6 +198,9 @@ struct State {
     scene: GpuScene,
     overlay: Overlay,
     rate: FrameRate,
+    /// The camera the environment was last shaded for: kept while the user drags, so that
+    /// a drag on a large model does not reshade the environment at every step.
+    environment_camera: Option<Camera>,
 }
 
 struct App {
@@ -243,7 +246,7 @@ impl App {
         let overlay = Overlay::new(&scene.gpu.device, config.format);
         eprintln!("drawing on {name} ({} samples per pixel)", scene.target.samples);
         let rate = FrameRate { since: Instant::now(), frames: 0 };
-        Ok(State { window, surface, config, targets, scene, overlay, rate })
+        Ok(State { window, surface, config, targets, scene, overlay, rate, environment_camera: None })
     }
 
     fn fail(&mut self, event_loop: &ActiveEventLoop, e: Error) {
@@ -278,7 +281,11 @@ impl State {
         };
         self.update_overlay(controls);
         let shot = controls.shot(plan, self.scene.scene.mesh.bounds(), self.size());
-        self.scene.prepare(&shot, controls.mode, controls.display);
+        if !controls.dragging || self.environment_camera.is_none() {
+            self.environment_camera = Some(shot.camera);
+        }
+        let environment_camera = self.environment_camera.unwrap_or(shot.camera);
+        self.scene.prepare(&shot, controls.mode, controls.display, &environment_camera);
         let gpu = &self.scene.gpu;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let view = frame.texture.create_view(&Default::default());
@@ -317,7 +324,8 @@ impl State {
         };
         let size = self.size();
         let shot = controls.shot(plan, self.scene.scene.mesh.bounds(), size);
-        self.scene.prepare(&shot, controls.mode, controls.display);
+        self.scene.prepare(&shot, controls.mode, controls.display, &shot.camera);
+        self.environment_camera = Some(shot.camera);
         let gpu = &self.scene.gpu;
         let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("saved frame"),

@@ -15,7 +15,7 @@ pub mod readback;
 
 use super::ambient::{self, AmbientCache};
 use super::cpu::Tracer;
-use super::{Blend16, Environment, Frame, Material, Mode, Scene, Shot};
+use super::{Blend16, Camera, Environment, Frame, Material, Mode, Scene, Shot};
 use crate::Result;
 use context::Gpu;
 use passes::{FrameSettings, FrameTargets, Passes};
@@ -80,6 +80,8 @@ pub struct GpuScene {
     pub material: Material,
     pub lighting: GpuLighting,
     ambient: Option<AmbientCache>,
+    /// The scene's BVH, for the environment's shadows and for which vertices a camera shows.
+    tracer: Option<Tracer>,
 }
 
 impl GpuScene {
@@ -107,15 +109,16 @@ impl GpuScene {
                 rects.as_deref(),
             )
         })?;
-        let ambient = lighting.environment.clone().map(|e| {
-            let tracer = lighting.shadows.then(|| Tracer::new(&scene.mesh));
-            AmbientCache::new(&scene, &material, e, tracer.as_ref())
-        });
-        Ok(GpuScene { gpu, passes, target, scene, material, lighting, ambient })
+        let ambient =
+            lighting.environment.clone().map(|e| AmbientCache::new(&scene, &material, e, lighting.shadows));
+        let tracer = (ambient.is_some() && lighting.shadows).then(|| Tracer::new(&scene.mesh));
+        Ok(GpuScene { gpu, passes, target, scene, material, lighting, ambient, tracer })
     }
 
-    /// Uploads what `shot` needs (blends, the environment if the camera moved, uniforms).
-    pub fn prepare(&mut self, shot: &Shot, mode: Mode, display: Display) {
+    /// Uploads what `shot` needs (blends, uniforms, and the environment's shading for
+    /// `environment_camera` if that moved: the shot's camera, or in a window the camera
+    /// where a drag began, since the environment costs more to shade than a frame).
+    pub fn prepare(&mut self, shot: &Shot, mode: Mode, display: Display, environment_camera: &Camera) {
         let sun = if display == Display::Btf { self.lighting.sun } else { 1.0 };
         let blends = if sun > 0.0 {
             display_blends(&self.scene, &self.material, shot, display)
@@ -124,7 +127,8 @@ impl GpuScene {
         };
         let environment = display == Display::Btf && self.ambient.is_some();
         if let (true, Some(cache)) = (environment, self.ambient.as_mut()) {
-            let (ambient, fresh) = cache.for_camera(&self.scene, &self.material, &shot.camera);
+            let scene = (&self.scene, &self.material);
+            let (ambient, fresh) = cache.for_camera(scene, environment_camera, self.tracer.as_ref());
             if fresh {
                 self.passes.upload_ambient(&self.gpu.queue, ambient);
             }
@@ -210,7 +214,7 @@ impl GpuRenderer {
                 size.0, size.1, self.size.0, self.size.1
             )));
         }
-        self.inner.prepare(shot, mode, display);
+        self.inner.prepare(shot, mode, display, &shot.camera);
         let gpu = &self.inner.gpu;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let target = self.target.create_view(&Default::default());
