@@ -207,6 +207,14 @@ fn render_writes_a_sequence_and_refuses_bad_input() {
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.starts_with("error: ") && stderr.contains("0x0"), "{stderr}");
     assert_one_line_error(&btfsynth(&["render", ply, "--frames", "0", "-o", out]), "--frames");
+    for bad in [["--spp", "3"], ["--env", "nowhere.hdr"], ["--ambient", "-0.5"]] {
+        let r = btfsynth(&[&["render", ply, "-o", out][..], &bad].concat());
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            !r.status.success() && stderr.lines().count() == 1 && stderr.contains(bad[1]),
+            "{bad:?}: {stderr}"
+        );
+    }
     let mut after = entries(dir.path());
     after.retain(|e| e != "elsewhere" && e != "a-file");
     let mut before = before;

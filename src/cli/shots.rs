@@ -52,7 +52,7 @@ pub struct LightingArgs {
     pub env: Option<String>,
     /// Add a uniform sky of radiance F, so that nothing is black: 1 lights a plane facing up
     /// as much as the directional light does at normal incidence.
-    #[arg(long, value_name = "F", default_value_t = 0.0, value_parser = parse_ambient)]
+    #[arg(long, value_name = "F", default_value_t = 0.0, value_parser = parse_ambient, allow_negative_numbers = true)]
     pub ambient: f32,
 }
 

@@ -222,6 +222,26 @@ mod tests {
     }
 
     #[test]
+    fn maps_are_read_from_exr_and_hdr_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (8, 4);
+        let image = image::Rgb32FImage::from_fn(w, h, |x, y| image::Rgb([x as f32, y as f32, 0.5]));
+        for name in ["sky.exr", "sky.hdr"] {
+            let path = dir.path().join(name);
+            image.save(&path).unwrap();
+            let env = Environment::open(&path).unwrap();
+            let expected: f32 = (0..h as usize).map(|y| cell_solid_angle(y, 8, 4) * 8.0 * 0.5).sum();
+            let blue: f32 = env.samples.iter().map(|s| s.power.z).sum();
+            assert!((blue - expected).abs() < 1e-2 * expected, "{name}: {blue} vs {expected}");
+            assert_eq!(env.samples.len(), 32);
+        }
+        let text = dir.path().join("sky.png");
+        std::fs::write(&text, b"not an image").unwrap();
+        assert!(Environment::open(&text).is_err());
+        assert!(Environment::open(&dir.path().join("missing.exr")).is_err());
+    }
+
+    #[test]
     fn bad_maps_are_refused() {
         assert!(Environment::from_equirect(2, 2, &[Vec3::ONE; 3]).is_err());
         assert!(Environment::from_equirect(1, 1, &[Vec3::new(-1.0, 0.0, 0.0)]).is_err());
