@@ -6,7 +6,7 @@
 //! Arbitrary Surfaces*, SIGGRAPH 2002.
 //!
 //! A BTF is a stack of photographs of one material patch under many view and light
-//! directions. [`btf::Btf`] holds one; [`btf::load`] reads the common layouts (a `btf.json`
+//! directions. [`btf::Btf`] holds one; [`btf::load()`] reads the common layouts (a `btf.json`
 //! manifest, Bonn/UTIA file names, or a single image as a one-image BTF), and
 //! [`btf::gen`] makes synthetic ground truth by ray-tracing height fields.
 //!
@@ -21,10 +21,13 @@
 
 pub mod analysis;
 pub mod btf;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod fsutil;
+pub mod maps;
 pub mod mesh;
 pub mod progress;
 pub mod render;

@@ -1,10 +1,16 @@
-//! Where tests find the real meshes and photographs that may not ship with btfsynth.
+//! What tests may find missing on a user's machine, and how they skip without it.
 //!
-//! They live in `../shared/data` beside the checkout (our CI and working setup); a user's
-//! clone has no such folder. A test that needs them calls [`shared_data`] and returns early
-//! on `None`: one line on stderr says what was skipped and why. CI sets
-//! `BTFSYNTH_REQUIRE_SHARED=1`, which turns a missing file into a failure, so the tests
-//! can never be skipped there silently.
+//! **Shared data.** The real meshes and photographs that may not ship with btfsynth live in
+//! `../shared/data` beside the checkout (our CI and working setup); a user's clone has no
+//! such folder. A test that needs them calls [`shared_data`] and returns early on `None`:
+//! one line on stderr says what was skipped and why. CI sets `BTFSYNTH_REQUIRE_SHARED=1`,
+//! which turns a missing file into a failure, so the tests can never be skipped there
+//! silently.
+//!
+//! **A GPU.** Tests of the wgpu renderer need an adapter (Mesa's lavapipe or llvmpipe is
+//! enough). Where a run reports none, [`gpu_missing`] prints one line and the test returns;
+//! CI sets `BTFSYNTH_REQUIRE_GPU=1`, which turns a missing adapter into a failure.
+//! `BTFSYNTH_SKIP_GPU=1` skips the GPU tests outright ([`gpu_skipped`]).
 
 use std::path::{Path, PathBuf};
 
@@ -36,6 +42,50 @@ pub fn shared_data_in(root: &Path, test: &str, relative: &str, required: bool) -
     None
 }
 
+/// The environment variable that makes a missing GPU adapter a failure (set by `.ci/run`).
+pub const REQUIRE_GPU: &str = "BTFSYNTH_REQUIRE_GPU";
+
+/// The environment variable that skips the GPU tests without trying the GPU.
+pub const SKIP_GPU: &str = "BTFSYNTH_SKIP_GPU";
+
+/// What `btfsynth view` says when wgpu finds no adapter (the start of its error line).
+pub const NO_ADAPTER_MESSAGE: &str = "no GPU adapter found";
+
+fn env_is_one(name: &str) -> bool {
+    std::env::var(name).is_ok_and(|v| v == "1")
+}
+
+/// True (after printing `skipped: <test>: …`) if [`SKIP_GPU`] asks to skip the GPU tests
+/// and [`REQUIRE_GPU`] does not forbid it.
+pub fn gpu_skipped(test: &str) -> bool {
+    let skip = env_is_one(SKIP_GPU) && !env_is_one(REQUIRE_GPU);
+    if skip {
+        eprintln!("skipped: {test}: {SKIP_GPU}=1");
+    }
+    skip
+}
+
+/// True (after printing `skipped: <test>: …`) if a GPU run failed with `stderr` because
+/// there is no adapter; panics instead when [`REQUIRE_GPU`] is `1`. False for any other
+/// outcome, which the test then judges itself.
+pub fn gpu_missing(test: &str, stderr: &str) -> bool {
+    gpu_missing_in(test, stderr, env_is_one(REQUIRE_GPU))
+}
+
+/// [`gpu_missing`] with an explicit requirement (so the skip path is testable).
+pub fn gpu_missing_in(test: &str, stderr: &str, required: bool) -> bool {
+    if !stderr.contains(NO_ADAPTER_MESSAGE) {
+        return false;
+    }
+    let why = "wgpu found no adapter (install Mesa's software drivers: apt-get install mesa-vulkan-drivers \
+               libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri)";
+    if required {
+        panic!("{test}: {why}, and {REQUIRE_GPU}=1 requires one; {stderr}");
+    }
+    eprintln!("skipped: {test}: {why}");
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -48,5 +98,18 @@ mod tests {
         assert!(required.is_err(), "a required missing file must fail the test");
         let here = Path::new(env!("CARGO_MANIFEST_DIR"));
         assert_eq!(shared_data_in(here, "t", "Cargo.toml", true), Some(here.join("Cargo.toml")));
+    }
+
+    #[test]
+    fn a_missing_adapter_skips_unless_required() {
+        let none = format!("error: {NO_ADAPTER_MESSAGE} (wgpu found no Vulkan, Metal, DX12 or GL device)");
+        assert!(gpu_missing_in("t", &none, false));
+        let required = std::panic::catch_unwind(|| gpu_missing_in("t", &none, true));
+        assert!(required.is_err(), "a required missing adapter must fail the test");
+        assert!(
+            !gpu_missing_in("t", "error: Format Rgba32Float is not renderable", false),
+            "other failures are not skips"
+        );
+        assert!(!gpu_missing_in("t", "", true), "a run that found an adapter is not a skip");
     }
 }

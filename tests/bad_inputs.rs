@@ -84,11 +84,11 @@ fn gen_rejects_bad_arguments_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let o = out.to_str().unwrap();
-    assert_one_line_error(
+    common::assert_usage_error(
         &btfsynth(&["gen", "pebbles", "--size", "0", "--directions", "grid:2", "-o", o]),
         "size 0",
     );
-    assert_one_line_error(
+    common::assert_usage_error(
         &btfsynth(&["gen", "pebbles", "--spp", "3", "--directions", "grid:2", "-o", o]),
         "square",
     );
@@ -96,7 +96,7 @@ fn gen_rejects_bad_arguments_and_writes_nothing() {
         &btfsynth(&["gen", "pebbles", "-o", dir.path().join("a/b").to_str().unwrap()]),
         "does not exist",
     );
-    assert_one_line_error(&btfsynth(&["gen", "--directions", "grid:2", "-o", o]), "material kind");
+    common::assert_usage_error(&btfsynth(&["gen", "--directions", "grid:2", "-o", o]), "<KIND>");
     let clap = btfsynth(&["gen", "pebbles", "--directions", "dome", "-o", o]);
     assert_eq!(clap.status.code(), Some(2), "usage errors exit 2");
     assert!(String::from_utf8_lossy(&clap.stderr).contains("ubo81"));

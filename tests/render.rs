@@ -161,7 +161,7 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
 fn surface(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
     let analysis = common::analyze_gravel_crop(dir, "analysis");
     let out = dir.join("bunny.ply");
-    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+    let bunny = common::BUNNY;
     let args =
         ["-q", "synth", analysis.to_str().unwrap(), bunny, "--vertices", "3000", "-o", out.to_str().unwrap()];
     let r = btfsynth(&args);
@@ -206,7 +206,7 @@ fn render_writes_a_sequence_and_refuses_bad_input() {
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.starts_with("error: ") && stderr.contains("0x0"), "{stderr}");
-    assert_one_line_error(&btfsynth(&["render", ply, "--frames", "0", "-o", out]), "--frames");
+    common::assert_usage_error(&btfsynth(&["render", ply, "--frames", "0", "-o", out]), "--frames");
     for bad in [["--spp", "3"], ["--env", "nowhere.hdr"], ["--ambient", "-0.5"]] {
         let r = btfsynth(&[&["render", ply, "-o", out][..], &bad].concat());
         let stderr = String::from_utf8_lossy(&r.stderr);

@@ -39,16 +39,24 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let info = btfsynth(&["info", one.to_str().unwrap(), "--json"]);
     let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
     assert_eq!(json["kind"], "surface");
-    assert_eq!(json["analysis"], a.to_str().unwrap());
+    assert_eq!(json["analysis"], "analysis", "recorded relative to the surface map");
+    let absolute = std::fs::canonicalize(&a).unwrap();
+    assert_eq!(json["analysis_absolute"], absolute.to_str().unwrap());
+    let analysis_info: serde_json::Value =
+        serde_json::from_slice(&btfsynth(&["info", a.to_str().unwrap(), "--json"]).stdout).unwrap();
+    assert_eq!(json["analysis_fingerprint"], analysis_info["fingerprint"]);
     let vertices = json["vertices"].as_u64().unwrap();
     assert!((3400..=4600).contains(&vertices), "{vertices}");
     assert!(json["faces"].as_u64().unwrap() > vertices);
     let eval = btfsynth(&["eval", a.to_str().unwrap(), one.to_str().unwrap(), "--json"]);
     assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
     let q: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
-    assert!(q["chi2"].as_f64().unwrap() < 0.5, "{q}");
-    assert!(q["energy"].as_f64().unwrap().is_finite());
-    assert!(q["coherence"].as_f64().unwrap() >= 1.0, "{q}");
+    assert_eq!(q["kind"], "surface");
+    assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.5, "{q}");
+    assert!(q["textons"]["energy"].as_f64().unwrap().is_finite());
+    assert!(q["coords"]["coherence"].as_f64().unwrap() >= 1.0, "{q}");
+    assert!(q["coords"]["collapse"].as_f64().unwrap() <= 0.05, "{q}");
+    assert!(q["probes"][0]["patch_energy"].as_f64().unwrap().is_finite(), "{q}");
 }
 
 #[test]
@@ -60,7 +68,16 @@ fn bad_surface_inputs() {
     let out = dir.path().join("out.ply");
     let o = out.to_str().unwrap();
     assert_one_line_error(&btfsynth(&["synth", a, bunny, "--orient", "axis:0,0", "-o", o]), "axis");
-    assert_one_line_error(&btfsynth(&["synth", a, bunny, "--scale", "1e9", "-o", o]), "vertices");
+    common::assert_usage_error(&btfsynth(&["synth", a, bunny, "--scale", "1e9", "-o", o]), "vertices");
+    // Targets too small to synthesize on (a 4-vertex tetrahedron used to come out).
+    for n in ["0", "1", "4"] {
+        let r = btfsynth(&["synth", a, bunny, "--vertices", n, "-o", o]);
+        common::assert_usage_error(&r, &format!("--vertices gives a finest mesh of {n} vertices"));
+    }
+    common::assert_usage_error(&btfsynth(&["synth", a, bunny, "--texels-across", "2", "-o", o]), "at least");
+    let zero = btfsynth(&["synth", a, bunny, "--scale", "0", "-o", o]);
+    common::assert_usage_error(&zero, "--scale");
+    assert!(!String::from_utf8_lossy(&zero.stderr).contains("Scale("), "no Rust Debug text");
     let nan = dir.path().join("nan.off");
     std::fs::write(&nan, "OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n").unwrap();
     assert_one_line_error(&btfsynth(&["synth", a, nan.to_str().unwrap(), "-o", o]), "nan.off");

@@ -180,9 +180,13 @@ fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
     };
 
     // The model is drawn (many colours, not the background alone), under the overlay.
-    let first = wait_for("the model on screen", Duration::from_secs(60), || {
+    // Mesa's software drivers compile the shaders on the first frame: minutes on a busy
+    // machine when their shader cache is cold.
+    let started = Instant::now();
+    let first = wait_for("the model on screen", Duration::from_secs(600), || {
         screenshot(&display, &window).filter(|s| distinct_colours(s) > 200 && overlay_text_pixels(s) > 20)
     });
+    eprintln!("the first frame showed after {:.1} s", started.elapsed().as_secs_f64());
     let background = first.get_pixel(first.width() - 1, first.height() - 1).0;
     let model =
         first.pixels().filter(|p| p.0.iter().zip(background).any(|(a, b)| a.abs_diff(b) > 20)).count();

@@ -10,11 +10,13 @@
 //! - [`knn`]: k-coherence candidate lists.
 //! - [`npy`]: NumPy arrays, the analysis' storage format.
 
+pub mod appearance;
 pub mod basis;
 pub mod convolve;
 pub mod features;
 pub mod filters;
 pub mod gamma;
+pub mod images;
 pub mod kmeans;
 pub mod knn;
 pub mod npy;

@@ -104,11 +104,13 @@ pub fn decode<T: Element>(bytes: &[u8]) -> Result<NpyArray<T>, String> {
         return Err("Fortran-ordered arrays are not supported".into());
     }
     let shape = parse_shape(header).ok_or("no shape in the .npy header")?;
-    let count: usize = shape.iter().product();
     let size = std::mem::size_of::<T>();
     let body = &bytes[start + header_len..];
-    if body.len() != count * size {
-        return Err(format!("{} data bytes for shape {shape:?}, expected {}", body.len(), count * size));
+    // Checked: a damaged shape must not wrap around to the body's length.
+    let expected = shape.iter().try_fold(size, |n, &d| n.checked_mul(d));
+    if expected != Some(body.len()) {
+        let expected = expected.map_or("more than fits in memory".to_string(), |n| n.to_string());
+        return Err(format!("{} data bytes for shape {shape:?}, expected {expected}", body.len()));
     }
     Ok(NpyArray { shape, data: body.chunks_exact(size).map(T::get).collect() })
 }
@@ -121,7 +123,8 @@ fn quoted_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
 
 fn parse_shape(header: &str) -> Option<Vec<usize>> {
     let rest = &header[header.find("'shape'")?..];
-    let inner = &rest[rest.find('(')? + 1..rest.find(')')?];
+    let rest = &rest[rest.find('(')? + 1..];
+    let inner = &rest[..rest.find(')')?];
     inner.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| s.parse().ok()).collect()
 }
 

@@ -31,6 +31,8 @@ pub struct AnalysisParams {
     pub tileable: bool,
     /// Most principal images filtered per level (default 32; see `analysis::basis`).
     pub basis_rank: usize,
+    /// Dimensions of the per-pixel appearance vectors (default 8; see `analysis::appearance`).
+    pub appearance_dims: usize,
     /// Seed of every random choice (default 0).
     pub seed: u64,
     /// The filter bank (default Leung–Malik 48, `filters/lm48.toml`).
@@ -47,6 +49,7 @@ impl Default for AnalysisParams {
             neighborhood: 5,
             tileable: false,
             basis_rank: 32,
+            appearance_dims: super::appearance::DEFAULT_DIMS,
             seed: 0,
             filters: FilterBank::lm48(),
         }
@@ -95,6 +98,7 @@ impl AnalysisParams {
             ("--levels", self.levels),
             ("--k", self.k),
             ("--basis", self.basis_rank),
+            ("--appearance-dims", self.appearance_dims),
         ];
         for (flag, value) in positive {
             if value == 0 {
@@ -117,10 +121,15 @@ impl AnalysisParams {
                     w.min(h) >= need
                 })
                 .count();
+            let n = self.neighborhood;
+            if fit == 0 {
+                return Err(Error::invalid(format!(
+                    "the sample is {width}x{height} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; analyse a larger sample or use a smaller --neighborhood"
+                )));
+            }
             return Err(Error::invalid(format!(
                 "--levels {}: the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; use --levels {fit} or fewer",
-                self.levels,
-                n = self.neighborhood
+                self.levels
             )));
         }
         Ok(())
@@ -159,6 +168,7 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
         let options = TextonOptions {
             textons: (params.textons >> (2 * l)).max(1),
             basis_rank: params.basis_rank,
+            appearance_dims: params.appearance_dims,
             padding,
             seed: params.seed + l as u64,
         };

@@ -10,6 +10,7 @@
 //! | `level{L}_embedding.npy` | f32 | [t+1, d] spectral embedding |
 //! | `level{L}_knn.npy` | u32 | [h_L, w_L, k] kNN lists (pixel index y·w+x, itself first) |
 //! | `level{L}_knn2.npy` | u32 | [h_L, w_L, k] two-level-neighbourhood lists (not on the coarsest level) |
+//! | `level{L}_appearance.npy` | f32 | [h_L, w_L, d] per-pixel appearance vectors |
 
 use super::npy;
 use super::pipeline::Analysis;
@@ -44,6 +45,9 @@ pub struct Manifest {
     pub timings_s: serde_json::Value,
     /// Peak resident memory of the process, if the platform reports it.
     pub peak_memory_bytes: Option<u64>,
+    /// Material maps stored beside the sample (`analyze --maps`; see [`crate::maps`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub maps: Vec<crate::maps::MapInfo>,
 }
 
 /// Where the stack came from.
@@ -65,6 +69,9 @@ pub struct Params {
     pub neighborhood: usize,
     pub tileable: bool,
     pub basis_rank: usize,
+    /// Absent in analyses written before appearance vectors existed.
+    #[serde(default)]
+    pub appearance_dims: usize,
     pub seed: u64,
 }
 
@@ -90,6 +97,9 @@ pub struct LevelFiles {
     pub embedding: String,
     pub knn: String,
     pub knn_two_level: Option<String>,
+    /// Absent in analyses written before appearance vectors existed.
+    #[serde(default)]
+    pub appearance: Option<String>,
 }
 
 /// Writes `analysis` of `btf` (read from `source_path` with `crop`) into `dir`.
@@ -98,6 +108,18 @@ pub fn write(
     btf: &Btf,
     source_path: &Path,
     crop: Option<[u32; 4]>,
+    dir: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
+    write_with_maps(analysis, btf, (source_path, crop), &[], dir, overwrite)
+}
+
+/// [`write()`], with material maps (already cropped like the sample) stored beside it.
+pub fn write_with_maps(
+    analysis: &Analysis,
+    btf: &Btf,
+    (source_path, crop): (&Path, Option<[u32; 4]>),
+    maps: &[crate::maps::MaterialMap],
     dir: &Path,
     overwrite: bool,
 ) -> Result<PathBuf> {
@@ -113,7 +135,8 @@ pub fn write(
         levels.push(write_level(out, l, level)?);
     }
     write_previews(out, analysis)?;
-    let manifest = manifest(analysis, btf, source_path, crop, levels);
+    let mut manifest = manifest(analysis, btf, source_path, crop, levels);
+    manifest.maps = crate::maps::store_maps(out, maps)?;
     let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
     write_file_atomic(&out.join(MANIFEST), json.as_bytes())?;
     staged.commit()
@@ -128,6 +151,7 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
         embedding: format!("level{l}_embedding.npy"),
         knn: format!("level{l}_knn.npy"),
         knn_two_level: level.knn_two_level.as_ref().map(|_| format!("level{l}_knn2.npy")),
+        appearance: Some(format!("level{l}_appearance.npy")),
     };
     let k = level.knn.len() / (w * h).max(1);
     npy::write(&out.join(&files.textons), &[h, w], &t.map.labels)?;
@@ -144,6 +168,10 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
     npy::write(&out.join(&files.knn), &[h, w, k], &level.knn)?;
     if let (Some(name), Some(lists)) = (&files.knn_two_level, &level.knn_two_level) {
         npy::write(&out.join(name), &[h, w, k], lists)?;
+    }
+    if let Some(name) = &files.appearance {
+        let a = &t.appearance;
+        npy::write(&out.join(name), &[h, w, a.ncols()], &a.iter().copied().collect::<Vec<_>>())?;
     }
     Ok(LevelInfo {
         width: w,
@@ -187,6 +215,7 @@ fn manifest(
             neighborhood: p.neighborhood,
             tileable: p.tileable,
             basis_rank: p.basis_rank,
+            appearance_dims: p.appearance_dims,
             seed: p.seed,
         },
         filters: serde_json::json!({"name": p.filters.name(), "filters": filters}),
@@ -202,6 +231,7 @@ fn manifest(
             "knn": t.knn.as_secs_f64(), "total": t.total.as_secs_f64(),
         }),
         peak_memory_bytes: peak_memory_bytes(),
+        maps: Vec::new(),
     }
 }
 
@@ -218,6 +248,23 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest> {
         ));
     }
     Ok(manifest)
+}
+
+/// Checks that the analysis in `dir` is the one `result` was synthesized from, by the
+/// fingerprint the result recorded (results written before fingerprints were recorded,
+/// `recorded` = None, are accepted).
+pub fn verify_fingerprint(dir: &Path, result: &Path, recorded: Option<&str>) -> Result<()> {
+    let Some(recorded) = recorded else { return Ok(()) };
+    let found = read_manifest(dir)?.source.fingerprint;
+    if found == recorded {
+        return Ok(());
+    }
+    Err(Error::AnalysisMismatch {
+        result: result.to_path_buf(),
+        analysis: dir.to_path_buf(),
+        recorded: recorded.to_string(),
+        found,
+    })
 }
 
 /// FNV-1a 64 over the directions and the pixels' f16 bits.

@@ -1,6 +1,7 @@
 //! One level of the texton pyramid (Tong §4): 3D textons by k-means of the per-pixel
 //! responses of the representative images, the 2D texton map, Γ and its embedding.
 
+use super::appearance::appearance_vectors;
 use super::basis::{principal_images, BasisOptions};
 use super::convolve::{BankConvolver, Padding};
 use super::features::texton_features;
@@ -21,6 +22,8 @@ pub struct LevelTextons {
     pub gamma: Array2<f32>,
     /// (textons + 1) × d: rows whose distances are the texton distances.
     pub embedding: Array2<f32>,
+    /// pixels × dims: every pixel's appearance vector (see [`super::appearance`]).
+    pub appearance: Array2<f32>,
     /// Number of textons, not counting the default texton.
     pub textons: usize,
     /// Principal images the responses were computed from, and the variance they hold.
@@ -47,6 +50,8 @@ pub struct TextonOptions {
     pub textons: usize,
     /// Most principal images filtered (see [`super::basis`]).
     pub basis_rank: usize,
+    /// Dimensions of the per-pixel appearance vectors.
+    pub appearance_dims: usize,
     pub padding: Padding,
     pub seed: u64,
 }
@@ -65,6 +70,9 @@ pub fn level_textons(
         BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() };
     let basis = principal_images(images, &basis_options)?;
     let features = texton_features(&basis, width, height, convolver, options.padding)?;
+    let wraps = matches!(options.padding, Padding::Wrap);
+    let appearance =
+        appearance_vectors(&basis, (width, height), options.appearance_dims, wraps, options.seed)?;
     timings.filtering = started.elapsed();
 
     let started = Instant::now();
@@ -89,6 +97,7 @@ pub fn level_textons(
         map: TextonMap { width, height, labels },
         gamma,
         embedding,
+        appearance,
         textons,
         basis_rank: basis.components.nrows(),
         basis_energy: basis.energy,

@@ -42,7 +42,7 @@ impl Direction {
     }
 
     /// A key equal for directions that differ by less than 0.001° (φ is irrelevant at θ = 0).
-    fn key(&self) -> (i64, i64) {
+    pub(crate) fn key(&self) -> (i64, i64) {
         let theta = (self.theta as f64 * 1000.0).round() as i64;
         let phi = if theta == 0 {
             0

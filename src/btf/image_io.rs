@@ -27,23 +27,66 @@ fn extension(path: &Path) -> Option<String> {
 
 /// Reads an image as linear RGB and applies `crop`.
 pub fn read_rgb(path: &Path, crop: Option<Crop>) -> Result<RgbImage> {
-    let image = match extension(path).as_deref() {
-        Some("exr") => read_exr(path)?,
-        Some("png" | "jpg" | "jpeg") => read_8_or_16_bit(path)?,
-        _ => return Err(Error::format(path, "not a PNG, JPEG or EXR file")),
-    };
+    if !is_image_path(path) {
+        return Err(Error::format(path, "not a PNG, JPEG or EXR file"));
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let image = decode_rgb(&bytes, path)?;
     match crop {
         Some(c) => crop_image(&image, c).map_err(|m| Error::format(path, m)),
         None => Ok(image),
     }
 }
 
-fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| Error::io(path, e))?
+/// Decodes the bytes of an image file as linear RGB; `path` names the file in errors and
+/// its extension picks EXR (else PNG/JPEG, told apart by their contents).
+pub fn decode_rgb(bytes: &[u8], path: &Path) -> Result<RgbImage> {
+    match extension(path).as_deref() {
+        Some("exr") => decode_exr(bytes, path),
+        _ => decode_8_or_16_bit(bytes, path),
+    }
+}
+
+/// Decoded bytes per file byte that no PNG, JPEG or EXR can exceed: deflate (PNG, EXR's ZIP)
+/// expands at most 1032-fold, a JPEG spends at least a bit on every 8×8 block, EXR's other
+/// codecs expand less. A header declaring more pixels than this is damaged, and is refused
+/// before the decoder allocates them.
+const MAX_EXPANSION: u64 = 1100;
+
+/// Refuses `width`×`height` pixels of `bits_per_pixel` if the `file_len` bytes they come
+/// from could not hold them.
+fn check_expansion(
+    path: &Path,
+    (width, height): (u64, u64),
+    bits_per_pixel: u64,
+    file_len: usize,
+) -> Result<()> {
+    let raw = width.saturating_mul(height).saturating_mul(bits_per_pixel) / 8;
+    if raw > MAX_EXPANSION.saturating_mul(file_len as u64) + (1 << 16) {
+        return Err(Error::format(
+            path,
+            format!(
+                "the header declares {width}x{height} pixels, more than a file of {file_len} bytes can hold"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn decode_8_or_16_bit(bytes: &[u8], path: &Path) -> Result<RgbImage> {
+    use image::ImageDecoder;
+    let cannot = |e: image::ImageError| Error::format(path, format!("cannot decode image: {e}"));
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    let decoded = reader.decode().map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+    if !matches!(reader.format(), Some(image::ImageFormat::Png | image::ImageFormat::Jpeg)) {
+        return Err(Error::format(path, "not a PNG or JPEG image (nor an EXR with the .exr extension)"));
+    }
+    let decoder = reader.into_decoder().map_err(cannot)?;
+    let (w, h) = decoder.dimensions();
+    let bits = u64::from(decoder.original_color_type().bits_per_pixel());
+    check_expansion(path, (w.into(), h.into()), bits, bytes.len())?;
+    let decoded = image::DynamicImage::from_decoder(decoder).map_err(cannot)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let data = if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
         decoded
@@ -59,10 +102,10 @@ fn read_8_or_16_bit(path: &Path) -> Result<RgbImage> {
     Ok(RgbImage { width, height, data })
 }
 
-fn read_exr(path: &Path) -> Result<RgbImage> {
+fn decode_exr(bytes: &[u8], path: &Path) -> Result<RgbImage> {
     use exr::prelude::{read, MetaData, ReadChannels, ReadLayers, ReadSpecificChannel, Vec2};
     let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
-    let meta = MetaData::read_from_file(path, false).map_err(bad)?;
+    let meta = MetaData::read_from_buffered(bytes, false).map_err(bad)?;
     let header = meta.headers.first().ok_or_else(|| Error::format(path, "EXR has no layers"))?;
     let has = |name: &str| header.channels.list.iter().any(|c| c.name == *name);
     let rgb = has("R") && has("G") && has("B");
@@ -70,12 +113,18 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
         return Err(Error::format(path, "EXR has neither R, G, B nor Y channels"));
     }
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let bits: usize = header.channels.list.iter().map(|c| 8 * c.sample_type.bytes_per_sample()).sum();
+        check_expansion(path, (size.width() as u64, size.height() as u64), bits as u64, bytes.len())?;
+    }
     type Pixels = (usize, Vec<f16>);
     let create = |size: Vec2<usize>| -> Pixels { (size.width(), vec![f16::ZERO; size.area() * 3]) };
     fn put((w, px): &mut Pixels, pos: Vec2<usize>, v: [f16; 3]) {
         let o = (pos.y() * *w + pos.x()) * 3;
         px[o..o + 3].copy_from_slice(&v);
     }
+    let source = std::io::Cursor::new(bytes);
     let (_, data) = if rgb {
         read()
             .no_deep_data()
@@ -91,7 +140,7 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
             .first_valid_layer()
             .all_attributes()
             .non_parallel()
-            .from_file(path)
+            .from_buffered(source)
             .map_err(bad)?
             .layer_data
             .channel_data
@@ -106,12 +155,15 @@ fn read_exr(path: &Path) -> Result<RgbImage> {
             .first_valid_layer()
             .all_attributes()
             .non_parallel()
-            .from_file(path)
+            .from_buffered(source)
             .map_err(bad)?
             .layer_data
             .channel_data
             .pixels
     };
+    if data.len() != width * height * 3 {
+        return Err(Error::format(path, "EXR's first valid layer is not its first layer"));
+    }
     if data.iter().any(|v| !v.is_finite()) {
         return Err(Error::format(path, "EXR contains NaN or infinite values"));
     }

@@ -3,9 +3,14 @@
 //! 1. a `btf.json` manifest (the file itself, or a directory that contains one);
 //! 2. a directory of Bonn/UTIA-named images, `tl{θl} pl{φl} tv{θv} pv{φv}.{jpg,png,exr}`
 //!    with space or underscore separators, flat or inside `tv###_pv###/` subfolders;
-//! 3. a single PNG, JPEG or EXR image: a one-image BTF seen and lit along the normal.
+//! 3. a single PNG, JPEG or EXR image: a one-image BTF seen and lit along the normal;
+//! 4. a file that holds a whole stack, decoded through [`crate::btf::source`]: a Bonn
+//!    `.btf` file (UBO2014) or a zip of UBO2003/ATRIUM images.
+//!
+//! EXRs in UTIA's `tv###_pv###/` folders hold CIE XYZ and are converted ([`crate::btf::utia`]).
 
-use crate::btf::image_io::{is_image_path, read_rgb};
+use crate::btf::image_io::is_image_path;
+use crate::btf::utia::read_stack_image;
 use crate::btf::{Btf, Crop, Direction, DirectionPair};
 use crate::progress::Progress;
 use crate::{Error, Result};
@@ -51,6 +56,9 @@ pub struct ManifestImage {
 
 /// Reads the stack at `path` (see the module documentation for the layouts recognised).
 pub fn load(path: &Path, options: &LoadOptions, progress: &dyn Progress) -> Result<Btf> {
+    if let Some(source) = crate::btf::source::open(path, options.crop)? {
+        return source.decode_all(progress);
+    }
     let entries = discover(path)?;
     read_entries(&entries, options, progress)
 }
@@ -139,7 +147,7 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// Angles named in a Bonn/UTIA file name; the parent folder may supply `tv`/`pv`.
-fn pair_from_name(file: &Path) -> Result<DirectionPair> {
+pub(crate) fn pair_from_name(file: &Path) -> Result<DirectionPair> {
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let bad = |why: String| {
         Error::format(
@@ -195,7 +203,7 @@ fn parse_tokens(stem: &str) -> Result<[Option<f32>; 4], String> {
 
 /// Reads every entry's image in parallel into one compact stack.
 fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progress) -> Result<Btf> {
-    let first = read_rgb(&entries[0].file, options.crop)?;
+    let first = read_stack_image(&entries[0].file, options.crop)?;
     let (width, height) = (first.width, first.height);
     let per_image = width * height * 3;
     let mut pixels = vec![f16::ZERO; per_image * entries.len()];
@@ -207,7 +215,7 @@ fn read_entries(entries: &[Entry], options: &LoadOptions, progress: &dyn Progres
         .zip(entries.par_iter())
         .skip(1)
         .try_for_each(|(out, entry)| {
-            let image = read_rgb(&entry.file, options.crop)?;
+            let image = read_stack_image(&entry.file, options.crop)?;
             if (image.width, image.height) != (width, height) {
                 return Err(Error::format(
                     &entry.file,

@@ -4,15 +4,23 @@
 //! Pixels are linear RGB stored as `f16`, one copy per image: a 64×64 × 6561-image stack
 //! (the Bonn UBO2003 dome) takes 161 MiB.
 
+pub mod archive;
+pub mod colour;
+pub mod convert;
 pub mod directions;
+pub mod factorize;
 pub mod gen;
 pub mod image_io;
 pub mod load;
+pub mod source;
+pub mod ubo2014;
+pub mod utia;
 pub mod write;
 
 pub use directions::{Direction, DirectionPair, DirectionSet};
 pub use load::{load, LoadOptions};
-pub use write::{write_stack, ImageFormat};
+pub use source::ImageSource;
+pub use write::{write_images, write_stack, ImageFormat};
 
 use crate::{Error, Result};
 use half::f16;

@@ -1,16 +1,19 @@
-//! Writing a stack as a `btf.json` manifest plus one image per direction pair, atomically.
+//! Writing a stack as a `btf.json` manifest plus one image per direction pair, atomically,
+//! from memory or streamed from a lazy source.
 
 use crate::btf::image_io::{write_exr, write_png};
 use crate::btf::load::{Manifest, ManifestImage, MANIFEST};
-use crate::btf::{Btf, DirectionPair};
+use crate::btf::{Btf, DirectionPair, ImageSource};
 use crate::fsutil::{write_file_atomic, StagedDir};
 use crate::progress::Progress;
 use crate::{Error, Result};
+use half::f16;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// Image file format of a written stack.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum ImageFormat {
     /// Half-float OpenEXR, lossless: the stack reads back bit for bit (default).
     #[default]
@@ -40,22 +43,39 @@ pub fn write_stack(
     overwrite: bool,
     progress: &dyn Progress,
 ) -> Result<PathBuf> {
+    write_images(btf, dir, format, source, overwrite, progress)
+}
+
+/// [`write_stack`] for any [`ImageSource`]: each image is decoded just before it is
+/// written, so a lazy source (a large `.btf` file) is never held in memory whole.
+pub fn write_images(
+    images: &dyn ImageSource,
+    dir: &Path,
+    format: ImageFormat,
+    source: Option<serde_json::Value>,
+    overwrite: bool,
+    progress: &dyn Progress,
+) -> Result<PathBuf> {
     let staged = StagedDir::new(dir, overwrite)?;
-    let names = file_names(btf.pairs(), format);
-    progress.start("writing images", btf.len() as u64);
-    names.par_iter().enumerate().try_for_each(|(i, name)| {
-        let path = staged.path().join(name);
-        let data = btf.image(i);
-        match format {
-            ImageFormat::Exr => write_exr(&path, btf.width(), btf.height(), data)?,
-            ImageFormat::Png => write_png(&path, btf.width(), btf.height(), data)?,
-        }
-        progress.advance(1);
-        Ok::<(), Error>(())
-    })?;
+    let names = file_names(images.pairs(), format);
+    let (width, height) = (images.width(), images.height());
+    progress.start("writing images", names.len() as u64);
+    names.par_iter().enumerate().try_for_each_init(
+        || vec![f16::ZERO; width * height * 3],
+        |data, (i, name)| {
+            images.decode_image(i, data)?;
+            let path = staged.path().join(name);
+            match format {
+                ImageFormat::Exr => write_exr(&path, width, height, data)?,
+                ImageFormat::Png => write_png(&path, width, height, data)?,
+            }
+            progress.advance(1);
+            Ok::<(), Error>(())
+        },
+    )?;
     progress.finish();
     let manifest = Manifest {
-        images: btf
+        images: images
             .pairs()
             .iter()
             .zip(&names)

@@ -1,11 +1,14 @@
 //! `btfsynth analyze`: texton analysis of a stack.
 
 use super::progress::Bars;
+use super::usage;
 use crate::analysis::filters::FilterBank;
 use crate::analysis::pipeline::{analyze, AnalysisParams};
 use crate::analysis::store;
+use crate::btf::image_io::is_image_path;
 use crate::btf::{load, Crop, LoadOptions};
 use crate::fsutil::check_target;
+use crate::maps::{self, MapSource, MaterialMap};
 use anyhow::Result;
 use std::path::PathBuf;
 
@@ -18,26 +21,31 @@ pub struct AnalyzeArgs {
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
     /// Textons at the finest level (capped by the pixel count); each coarser level gets a quarter.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = super::at_least(1))]
     textons: usize,
     /// Representative images clustered into textons (capped by the image count).
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = super::at_least(1))]
     selected: usize,
-    /// Pyramid levels.
-    #[arg(long, default_value_t = 3)]
+    /// Pyramid levels (each half the size of the finer one; the coarsest must be at least
+    /// the neighbourhood + 4 pixels wide).
+    #[arg(long, default_value_t = 3, value_parser = super::at_least(1))]
     levels: usize,
     /// Length of each kNN list, the pixel itself included (1 = Ashikhmin's coherence search).
-    #[arg(long, default_value_t = 11)]
+    #[arg(long, default_value_t = 11, value_parser = super::at_least(1))]
     k: usize,
-    /// Side of the square neighbourhood used by the kNN search (odd).
-    #[arg(long, default_value_t = 5)]
+    /// Side of the square neighbourhood used by the kNN search (odd, at least 3).
+    #[arg(long, default_value_t = 5, value_parser = super::odd_side)]
     neighborhood: usize,
     /// The sample tiles: filters and neighbourhoods wrap around instead of mirroring.
     #[arg(long)]
     tileable: bool,
     /// Most principal images filtered per level (more = closer to filtering every image).
-    #[arg(long, default_value_t = 32, value_name = "N")]
+    #[arg(long, default_value_t = 32, value_name = "N", value_parser = super::at_least(1))]
     basis: usize,
+    /// Dimensions of the per-pixel appearance vectors (PCA of the filter responses) that the
+    /// appearance-space synthesis metric compares.
+    #[arg(long, default_value_t = crate::analysis::appearance::DEFAULT_DIMS, value_name = "N")]
+    appearance_dims: usize,
     /// A filter bank TOML file (default: the built-in Leung–Malik 48, filters/lm48.toml).
     #[arg(long, value_name = "FILE")]
     filters: Option<PathBuf>,
@@ -47,9 +55,38 @@ pub struct AnalyzeArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Material maps of the same patch, stored beside the sample at their own depth (8-bit,
+    /// 16-bit PNG or float EXR) and carried through synthesis: KIND=FILE pairs separated by
+    /// commas; kinds: normal, roughness, metallic, occlusion, height.
+    #[arg(long, value_name = "KIND=FILE,…", value_parser = parse_maps)]
+    maps: Option<MapList>,
     /// Replace the output directory if it exists.
     #[arg(long)]
     force: bool,
+}
+
+/// The `--maps` list as clap hands it over.
+#[derive(Clone, Debug)]
+struct MapList(Vec<MapSource>);
+
+fn parse_maps(s: &str) -> Result<MapList, String> {
+    maps::parse_map_list(s).map(MapList).map_err(|e| e.to_string())
+}
+
+/// The maps of `--maps`, checked against the stack and cropped like it.
+fn load_maps(args: &AnalyzeArgs, stack: &crate::btf::Btf) -> Result<Vec<MaterialMap>> {
+    let Some(MapList(sources)) = &args.maps else { return Ok(Vec::new()) };
+    // Maps match the uncropped image: known for a one-image stack, else only the crop's fit
+    // can be checked.
+    let size = match args.crop {
+        None => Some((stack.width(), stack.height())),
+        Some(_) if is_image_path(&args.stack) => {
+            image::image_dimensions(&args.stack).ok().map(|(w, h)| (w as usize, h as usize))
+        }
+        Some(_) => None,
+    };
+    let crop = args.crop.map(|c| (c.x as usize, c.y as usize, c.width as usize, c.height as usize));
+    Ok(sources.iter().map(|s| MaterialMap::load(s, size, crop)).collect::<crate::Result<_>>()?)
 }
 
 pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
@@ -66,13 +103,17 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         neighborhood: args.neighborhood,
         tileable: args.tileable,
         basis_rank: args.basis,
+        appearance_dims: args.appearance_dims,
         seed: args.seed,
         filters,
     };
     let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
+    let maps = load_maps(&args, &stack)?;
+    params.validate(stack.width(), stack.height()).map_err(usage)?;
     let analysis = analyze(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
-    let written = store::write(&analysis, &stack, &args.stack, crop, &args.output, args.force)?;
+    let written =
+        store::write_with_maps(&analysis, &stack, (&args.stack, crop), &maps, &args.output, args.force)?;
     let t = &analysis.timings;
     let sizes: Vec<String> = analysis
         .levels
@@ -94,6 +135,11 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         written.display()
     );
     eprintln!("  levels    {}", sizes.join("; "));
+    if !maps.is_empty() {
+        let names: Vec<String> =
+            maps.iter().map(|m| format!("{} ({:?})", m.kind.name(), m.image.depth)).collect();
+        eprintln!("  maps      {}", names.join(", "));
+    }
     eprintln!(
         "  time      {:.1} s (selection {:.1}, filtering {:.1}, k-means {:.1}, Γ {:.1}, kNN {:.1})",
         t.total.as_secs_f64(),

@@ -11,7 +11,7 @@ use crate::render::scene::open_surface;
 use crate::render::{FrameFormat, Material, Orbit, SequenceWriter, ShotPlan};
 use crate::synth::plane::{synthesize_plane, write_plane};
 use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
-use crate::synth::{Preset, Sample, Search, SynthParams};
+use crate::synth::{Sample, Search, SynthParams};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 
@@ -101,7 +101,7 @@ const DEMO_FRAMES: usize = 16;
 /// Renders the surface map under a sun circling at 45° elevation and the built-in sky, EXR
 /// and PNG frames.
 fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
-    let (scene, analysis) = open_surface(surface, None)?;
+    let (scene, analysis) = open_surface(surface, None, true)?;
     let material = Material::open(&analysis)?;
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
@@ -123,16 +123,11 @@ fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
 /// Synthesizes the analysis in `analysis_dir` onto `mesh` (20k vertices, smooth frames).
 fn surface_map(analysis_dir: &Path, mesh: &Path, output: &Path, bars: &Bars) -> Result<()> {
     let sample = Sample::open(analysis_dir, 3)?;
-    let params = SynthParams {
-        preset: Preset::tong2002(),
-        search: Search::KCoherence { k: 11 },
-        neighborhood: 5,
-        seed: 0,
-    };
+    let params = SynthParams::default();
     let input = crate::mesh::load(mesh)?;
     let pyramid = build_pyramid(&input, Density::Vertices(20_000), 3, &Orientation::Smooth, &params, bars)?;
     let (state, _) = synthesize_surface(&pyramid, &sample, &params, bars)?;
-    let params_json = serde_json::json!({"preset": "tong2002", "k": 11, "levels": 3, "neighborhood": 5, "orient": "smooth", "seed": 0});
+    let params_json = serde_json::json!({"preset": params.preset.name, "k": 11, "levels": 3, "neighborhood": params.neighborhood, "orient": "smooth", "seed": params.seed});
     write_surface_ply(output, &pyramid.levels[0], &state, (analysis_dir, mesh), &params_json)?;
     Ok(())
 }
@@ -154,17 +149,13 @@ fn analyse_and_synthesize(
         serde_json::to_string_pretty(&super::info::analysis_json(&store::read_manifest(analysis_dir)?))?
     );
     let sample = Sample::open(analysis_dir, params.levels)?;
-    let synth = SynthParams {
-        preset: Preset::tong2002(),
-        search: Search::KCoherence { k: params.k },
-        neighborhood: 5,
-        seed: 0,
-    };
+    let synth = SynthParams { search: Search::KCoherence { k: params.k }, ..SynthParams::default() };
     let plane = synthesize_plane(&sample, (192, 192), &synth, bars)?;
     write_plane(
         &plane,
         analysis_dir,
-        serde_json::json!({"preset": "tong2002", "neighborhood": 5, "seed": 0}),
+        &[],
+        serde_json::json!({"preset": synth.preset.name, "neighborhood": synth.neighborhood, "seed": synth.seed}),
         plane_dir,
         true,
     )?;

@@ -1,35 +1,56 @@
 //! `btfsynth eval`: quality of a synthesized result against its sample.
 
 use super::progress::Bars;
-use crate::eval::{chi2, coherence, energy, Quality};
-use crate::synth::engine::State;
-use crate::synth::plane::{read_plane, MANIFEST};
-use crate::synth::surface::surface_level;
-use crate::synth::surface_map::read_surface_ply;
-use crate::synth::target::{grid_levels, TargetLevel};
-use crate::synth::Sample;
+use super::shots::with_force_hint;
+use crate::analysis::store::verify_fingerprint;
+use crate::eval::report::{evaluate_picture, evaluate_plane, evaluate_surface, Evaluation};
+use crate::synth::plane::MANIFEST;
+use crate::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use anyhow::{bail, Result};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(after_help = "What the numbers mean (lower is better unless said):
+  patch energy   mean squared difference (sRGB 0-1, per value) of every 4th 7x7 patch of the
+                 result to its nearest 7x7 patch of the sample; 'coarse' on both halved
+  colour chi2    colour-histogram distance, 0 identical .. 1 disjoint
+  contrast       luma standard deviation over the sample's: 1 is right, below 1 washed out
+  collapse       share of the output copied from the most-used 1% of sample texels
+                 (a tiled copy: 0.01; above 0.05 a few texels are stamped everywhere)
+  smear          share of adjacent output pairs copying the very same texel (streaks; want 0)
+  copy           largest contiguously copied patch over the sample's area (about 1 or more:
+                 the sample was copied whole, a tiling rather than a synthesis)
+  coherence      mean output vertices per contiguously copied patch
+  texton chi2, texton energy   Tong's texton-space figures (histogram, distance through Γ)
+
+Examples:
+  btfsynth eval stone.analysis/ plane/            a plane result (synth --plane)
+  btfsynth eval stone.analysis/ bunny.ply         a surface map
+  btfsynth eval stone.analysis/ other-tool.png    any picture, e.g. another synthesizer's")]
 pub struct EvalArgs {
-    /// The analysis directory the result was synthesized from.
+    /// The analysis directory the result was synthesized from (or should look like).
     analysis: PathBuf,
-    /// A surface map (the PLY from `synth ANALYSIS MESH`) or a plane result directory.
+    /// A surface map (the PLY from `synth ANALYSIS MESH`), a plane result directory, or a
+    /// PNG/JPEG picture (image-space measures only).
     result: PathBuf,
-    /// Print one JSON object {"chi2", "energy", "coherence"}.
+    /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Evaluate against the analysis even if its fingerprint differs from the one the
+    /// result was synthesized from.
+    #[arg(long)]
+    force_analysis: bool,
 }
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
-    let (level, state, what) = if args.result.join(MANIFEST).is_file() {
-        let (width, height, state, manifest) = read_plane(&args.result)?;
-        let neighborhood = manifest["params"]["neighborhood"].as_u64().unwrap_or(5) as usize;
-        let grid = grid_levels(width, height, 1, neighborhood, 3).remove(0);
-        (grid, state, format!("{width}x{height} plane"))
+    let evaluation = if args.result.join(MANIFEST).is_file() {
+        check_analysis(&args, plane_fingerprint(&args.result).as_deref())?;
+        evaluate_plane(&args.analysis, &args.result)?
+    } else if is_picture(&args.result) {
+        evaluate_picture(&args.analysis, &args.result)?
     } else if args.result.is_file() {
         let map = read_surface_ply(&args.result)?;
+        check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
         let neighborhood = map
             .comments
             .iter()
@@ -37,42 +58,65 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
             .and_then(|p| serde_json::from_str::<serde_json::Value>(p).ok())
             .and_then(|p| p["neighborhood"].as_u64())
             .unwrap_or(5) as usize;
-        let level = surface_level(&map.mesh, &map.frames, map.texel, neighborhood)?;
-        let what = format!("surface map of {} vertices", map.mesh.vertex_count());
-        (level, map.state, what)
+        evaluate_surface(&args.analysis, &map, neighborhood, &args.result)?
     } else {
-        bail!("{}: not a result: expected a surface map PLY or a plane directory", args.result.display());
-    };
-    let quality = evaluate(&args, &level, &state)?;
-    if args.json {
-        println!("{}", serde_json::to_string(&quality)?);
-    } else {
-        println!("{}: {what} from {}", args.result.display(), args.analysis.display());
-        println!("  chi2       {:.4}  (texton histograms; 0 = identical)", quality.chi2);
-        println!(
-            "  energy     {:.4}  (mean neighbourhood distance through Γ; lower is better)",
-            quality.energy
+        bail!(
+            "{}: not a result: expected a plane directory, a surface map PLY or a PNG/JPEG picture",
+            args.result.display()
         );
-        println!("  coherence  {:.1}  (mean vertices per contiguously copied patch)", quality.coherence);
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&evaluation)?);
+    } else {
+        print_table(&args, &evaluation);
     }
     Ok(())
 }
 
-fn evaluate(args: &EvalArgs, level: &TargetLevel, state: &State) -> Result<Quality> {
-    let sample = Sample::open(&args.analysis, 1)?;
-    let s = &sample.levels[0];
-    if state.labels.iter().any(|&l| l as usize >= s.textons)
-        || state.uv.iter().any(|&[x, y]| x < 0 || y < 0 || x as usize >= s.width || y as usize >= s.height)
-    {
-        bail!(
-            "{}: its labels or coordinates do not fit the analysis {}",
-            args.result.display(),
-            args.analysis.display()
+/// Refuses an analysis of another sample than the one the result records (`recorded`),
+/// unless `--force-analysis`. A picture records none.
+fn check_analysis(args: &EvalArgs, recorded: Option<&str>) -> Result<()> {
+    if args.force_analysis {
+        return Ok(());
+    }
+    verify_fingerprint(&args.analysis, &args.result, recorded).map_err(with_force_hint)
+}
+
+/// The analysis fingerprint a plane result's manifest records, if any.
+fn plane_fingerprint(dir: &std::path::Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
+    let manifest: serde_json::Value = serde_json::from_str(&text).ok()?;
+    manifest["analysis_fingerprint"].as_str().map(str::to_string)
+}
+
+fn is_picture(path: &std::path::Path) -> bool {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    path.is_file() && matches!(ext.as_deref(), Some("png" | "jpg" | "jpeg"))
+}
+
+fn print_table(args: &EvalArgs, e: &Evaluation) {
+    println!(
+        "{}: {} of {} vertices, against {}",
+        args.result.display(),
+        e.kind,
+        e.vertices,
+        args.analysis.display()
+    );
+    for p in &e.probes {
+        let q = &p.quality;
+        println!(
+            "  {:<10} (view {:.0},{:.0} light {:.0},{:.0}): patch energy {:.5} (coarse {:.5}), colour chi2 {:.4}, contrast {:.3}",
+            p.probe.name, p.probe.view[0], p.probe.view[1], p.probe.light[0], p.probe.light[1],
+            q.patch_energy, q.patch_energy_coarse, q.colour_chi2, q.contrast
         );
     }
-    Ok(Quality {
-        chi2: chi2(&state.labels, &s.labels, s.textons),
-        energy: energy(level, state, s),
-        coherence: coherence(level, state, s),
-    })
+    if let Some(c) = &e.coords {
+        println!(
+            "  coordinates: collapse {:.4}, smear {:.4}, copy {:.3}, coherence {:.1}",
+            c.collapse, c.smear, c.copy, c.coherence
+        );
+    }
+    if let Some(t) = &e.textons {
+        println!("  textons: chi2 {:.4}, energy {:.4}", t.chi2, t.energy);
+    }
 }

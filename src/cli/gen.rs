@@ -1,23 +1,27 @@
 //! `btfsynth gen`: ray-trace a synthetic stack.
 
 use super::progress::Bars;
+use super::usage;
 use crate::btf::gen::{generate, GenParams, MaterialKind};
 use crate::btf::{write_stack, DirectionSet, ImageFormat};
 use crate::fsutil::check_target;
-use anyhow::{bail, Result};
+use anyhow::Result;
 use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
-#[command(after_help = "Example: btfsynth gen pebbles --size 64 --directions ubo81 -o pebbles/")]
+#[command(
+    override_usage = "btfsynth gen [OPTIONS] -o <DIR> <KIND>\n       btfsynth gen --list",
+    after_help = "Example: btfsynth gen pebbles --size 64 --directions ubo81 -o pebbles/"
+)]
 pub struct GenArgs {
     /// Material to generate (see --list).
-    #[arg(value_enum)]
+    #[arg(value_enum, required_unless_present = "list")]
     kind: Option<MaterialKind>,
     /// Output directory: btf.json plus one image per (light, view) pair.
-    #[arg(short, long, value_name = "DIR")]
+    #[arg(short, long, value_name = "DIR", required_unless_present = "list")]
     output: Option<PathBuf>,
-    /// Sample width and height in pixels.
+    /// Sample width and height in pixels, 4 to 2048.
     #[arg(long, default_value_t = 64)]
     size: usize,
     /// Dome for views and lights: ubo81 (Bonn UBO2003, 6561 images), ubo151 (UBO2014,
@@ -30,7 +34,7 @@ pub struct GenArgs {
     /// Image format of the stack.
     #[arg(long, value_enum, default_value_t = ImageFormat::Exr)]
     format: ImageFormat,
-    /// Samples per pixel (a square number: 1, 4, 9, 16, …).
+    /// Samples per pixel (a square number: 1, 4, 9, 16, … 64).
     #[arg(long, default_value_t = 4)]
     spp: usize,
     /// Replace the output directory if it exists.
@@ -53,16 +57,17 @@ pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {
         return Ok(());
     }
     let Some(kind) = args.kind else {
-        bail!("name a material kind: pebbles, weave or bricks (see gen --list)")
+        return Err(usage("name a material kind: pebbles, weave or bricks (see gen --list)"));
     };
-    let Some(output) = args.output else { bail!("name the output directory with -o DIR") };
-    check_target(&output, args.force)?;
+    let Some(output) = args.output else { return Err(usage("name the output directory with -o DIR")) };
     let params = GenParams {
         size: args.size,
         directions: args.directions,
         seed: args.seed,
         samples_per_pixel: args.spp,
     };
+    params.validate().map_err(usage)?;
+    check_target(&output, args.force)?;
     let started = Instant::now();
     let stack = generate(kind, &params, bars)?;
     let source = serde_json::json!({

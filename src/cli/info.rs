@@ -8,8 +8,10 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, or one
-    /// image), an analysis directory, or a mesh (OBJ, OFF, PLY).
+    /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, one
+    /// image, a Bonn .btf file or a zip of UBO2003/ATRIUM images), an analysis directory, or
+    /// a mesh (OBJ, OFF, PLY). A .btf file is described from its header unless --crop asks
+    /// to decode a part.
     path: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -40,6 +42,15 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
                 surface["faces"],
                 surface["analysis"].as_str().unwrap_or("")
             );
+        }
+        return Ok(());
+    }
+    if crate::btf::ubo2014::is_bonn_file(&args.path) && args.crop.is_none() {
+        let file = crate::btf::ubo2014::BonnBtf::open(&args.path)?;
+        if args.json {
+            println!("{}", file.describe());
+        } else {
+            print_bonn_file(&file);
         }
         return Ok(());
     }
@@ -104,6 +115,47 @@ fn print_stack(path: &Path, stack: &Btf) {
     println!("  lights  {} distinct, θ up to {}°", lights.len(), max_theta(&lights));
     println!("  mean    linear RGB ({:.3}, {:.3}, {:.3})", mean[0], mean[1], mean[2]);
     println!("  memory  {:.1} MiB as f16", std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64);
+}
+
+/// A Bonn `.btf` file from its header alone (nothing is decoded).
+fn print_bonn_file(file: &crate::btf::ubo2014::BonnBtf) {
+    let d = file.describe();
+    let (views, lights) = file.views_and_lights();
+    println!(
+        "{}: Bonn {} BTF file ({})",
+        file.path().display(),
+        d["format"].as_str().unwrap_or(""),
+        file.signature()
+    );
+    println!(
+        "  size    {} x {} pixels, {} images ({views} views × {lights} lights)",
+        file.width(),
+        file.height(),
+        file.pairs().len()
+    );
+    if let Some(components) = d["components"].as_array() {
+        let k: Vec<String> = components.iter().map(|c| c.to_string()).collect();
+        println!(
+            "  factors {} components per channel, {} scalars",
+            k.join(", "),
+            d["scalar"].as_str().unwrap_or("")
+        );
+        println!(
+            "  colour  model {} ({})",
+            d["colour_model"]["id"],
+            d["colour_model"]["name"].as_str().unwrap_or("")
+        );
+    }
+    let meta = file.meta();
+    println!(
+        "  header  version {}, setup {:?}, sensor {:?}, light {:?}",
+        meta.version, meta.measurement_setup, meta.image_sensor, meta.light_source
+    );
+    println!(
+        "  file    {:.1} MiB; decoded whole it would take {:.1} MiB as f16",
+        d["file_bytes"].as_f64().unwrap_or(0.0) / (1u64 << 20) as f64,
+        (file.pairs().len() * file.width() * file.height() * 6) as f64 / (1u64 << 20) as f64
+    );
 }
 
 fn max_theta(dirs: &[Direction]) -> f32 {
@@ -197,6 +249,8 @@ fn surface_header(path: &Path) -> Result<Option<serde_json::Value>> {
         "vertices": count("vertex"),
         "faces": count("face"),
         "analysis": field("comment analysis ").unwrap_or(""),
+        "analysis_absolute": field("comment analysis-absolute ").unwrap_or(""),
+        "analysis_fingerprint": field("comment analysis-fingerprint ").unwrap_or(""),
         "mesh": field("comment mesh ").unwrap_or(""),
         "params": params,
     })))

@@ -3,9 +3,9 @@
 use super::progress::Bars;
 use super::shots::{LightingArgs, OutputArgs, ShotArgs};
 use crate::render::cpu::{render_sequence, valid_spp, RenderOptions};
-use crate::render::scene::open_surface;
 use crate::render::{Material, SequenceWriter};
-use anyhow::{Context, Result};
+use anyhow::Result;
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -18,6 +18,9 @@ btfsynth render bunny.ply -o studio/ --env studio.hdr --spp 16"
 pub struct RenderArgs {
     #[command(flatten)]
     shots: ShotArgs,
+    /// Output directory: the frames and contact.png.
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
     #[command(flatten)]
     lighting: LightingArgs,
     #[command(flatten)]
@@ -36,11 +39,10 @@ pub struct RenderArgs {
 }
 
 pub fn run(args: RenderArgs, bars: &Bars) -> Result<()> {
-    let plan = args.shots.plan()?;
+    let plan = args.shots.plan();
     let (sun, environment) = args.lighting.lighting()?;
-    let dir = args.out.output.clone().context("give an output directory: -o DIR")?;
-    let mut writer = SequenceWriter::new(&dir, &[args.out.format], args.out.force)?;
-    let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
+    let mut writer = SequenceWriter::new(&args.output, &[args.out.format], args.out.force)?;
+    let (scene, analysis) = args.shots.open_surface()?;
     let material = Material::open(&analysis)?;
     let started = Instant::now();
     let options = RenderOptions { mode: args.shots.mode, shadows: !args.no_shadows, spp: args.spp, sun };
@@ -55,12 +57,12 @@ pub fn run(args: RenderArgs, bars: &Bars) -> Result<()> {
     )?;
     let dir = writer.finish()?;
     eprintln!(
-        "rendered {} frame(s) of {}x{} ({} vertices, {:?} mode): {:.3} s per frame, {:.2} s in all",
+        "rendered {} frame(s) of {}x{} ({} vertices, {} mode): {:.3} s per frame, {:.2} s in all",
         plan.frames,
         plan.size.0,
         plan.size.1,
         scene.mesh.vertex_count(),
-        args.shots.mode,
+        args.shots.mode_name(),
         per_frame,
         started.elapsed().as_secs_f64()
     );

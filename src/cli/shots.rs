@@ -1,7 +1,8 @@
 //! Options that `render` and `view` share: which surface, which shots, which shading.
 
+use crate::render::scene::{open_surface, Scene};
 use crate::render::{Environment, FrameFormat, Mode, Orbit, ShotPlan};
-use anyhow::{bail, Result};
+use anyhow::Result;
 use glam::Vec3;
 use std::path::PathBuf;
 
@@ -10,15 +11,19 @@ use std::path::PathBuf;
 pub struct ShotArgs {
     /// The surface map to render (a PLY from `btfsynth synth`).
     pub surface: PathBuf,
-    /// The analysis directory [default: the one named in the surface map's header, as
-    /// written or relative to the surface map].
+    /// The analysis directory [default: the one named in the surface map's header, found
+    /// relative to the surface map, else at its absolute path].
     #[arg(long, value_name = "DIR")]
     pub analysis: Option<PathBuf>,
+    /// Use the analysis even if its fingerprint differs from the one the surface map was
+    /// synthesized from (an analysis of another sample).
+    #[arg(long)]
+    pub force_analysis: bool,
     /// Image size in pixels.
     #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
-    /// Number of frames. With more than one and no --view-orbit, the light orbits.
-    #[arg(long, default_value_t = 1)]
+    /// Number of frames, at least 1. With more than one and no --view-orbit, the light orbits.
+    #[arg(long, default_value_t = 1, value_parser = super::at_least(1))]
     pub frames: usize,
     /// The light circles the model at its --light elevation, one turn over the frames.
     #[arg(long)]
@@ -82,12 +87,10 @@ fn parse_ambient(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Where a sequence goes.
+/// How a sequence is written (the output directory itself is each command's own flag:
+/// `render` always needs one, `view` only with `--headless`).
 #[derive(clap::Args, Clone, Debug)]
 pub struct OutputArgs {
-    /// Output directory (frames, contact.png).
-    #[arg(short, long, value_name = "DIR")]
-    pub output: Option<PathBuf>,
     /// Frame file format: exr (linear f32 RGBA) or png (8-bit sRGB).
     #[arg(long, value_enum, default_value_t = FrameFormat::Exr)]
     pub format: FrameFormat,
@@ -98,10 +101,7 @@ pub struct OutputArgs {
 
 impl ShotArgs {
     /// The shots the options describe.
-    pub fn plan(&self) -> Result<ShotPlan> {
-        if self.frames == 0 {
-            bail!("--frames 0: render at least one frame");
-        }
+    pub fn plan(&self) -> ShotPlan {
         let orbit = match (self.light_orbit, self.view_orbit) {
             (true, true) => Orbit::Both,
             (false, true) => Orbit::View,
@@ -109,14 +109,28 @@ impl ShotArgs {
             (false, false) if self.frames > 1 => Orbit::Light,
             (false, false) => Orbit::None,
         };
-        Ok(ShotPlan {
+        ShotPlan {
             size: self.size,
             frames: self.frames,
             light: self.light,
             view: self.view,
             orbit,
             orthographic: self.orthographic,
-        })
+        }
+    }
+
+    /// The surface map and the analysis directory to render it with, checked against each
+    /// other unless `--force-analysis`.
+    pub fn open_surface(&self) -> anyhow::Result<(Scene, PathBuf)> {
+        open_surface(&self.surface, self.analysis.as_deref(), !self.force_analysis).map_err(with_force_hint)
+    }
+
+    /// The `--mode` value as typed.
+    pub fn mode_name(&self) -> &'static str {
+        match self.mode {
+            Mode::Pixel => "pixel",
+            Mode::Vertex => "vertex",
+        }
     }
 }
 
@@ -137,5 +151,15 @@ pub fn parse_angles(s: &str) -> Result<(f32, f32), String> {
     match (t.trim().parse::<f32>(), p.trim().parse::<f32>()) {
         (Ok(t), Ok(p)) if (0.0..=180.0).contains(&t) && p.is_finite() => Ok((t, p)),
         _ => Err(bad()),
+    }
+}
+
+/// A mismatched analysis, with the way to use it anyway.
+pub fn with_force_hint(e: crate::Error) -> anyhow::Error {
+    match e {
+        crate::Error::AnalysisMismatch { .. } => {
+            anyhow::anyhow!("{e}; pass --force-analysis to use it anyway")
+        }
+        other => other.into(),
     }
 }

@@ -1,12 +1,15 @@
 //! `btfsynth synth`: texton map synthesis on a mesh (surface mode) or a grid (plane mode).
 
 use super::progress::Bars;
+use super::usage;
 use crate::fsutil::{check_target, write_file_atomic};
 use crate::mesh::field::Orientation;
 use crate::synth::plane::{synthesize_plane, write_plane};
-use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
+use crate::synth::surface_map::{
+    build_pyramid, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
+};
 use crate::synth::{LevelReport, Preset, Sample, Search, SynthParams};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -32,16 +35,28 @@ pub struct SynthArgs {
     /// Synthesize on a regular W×H grid instead of a mesh (2D texture synthesis).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     plane: Option<(usize, usize)>,
+    /// With --plane: also show the result under this view θ,φ (degrees from the normal;
+    /// repeatable; every --view with every --light, each the nearest measured image)
+    /// [default: head-on, light at 45° and grazing light].
+    #[arg(long = "view", value_name = "θ,φ", value_parser = super::shots::parse_angles, requires = "plane")]
+    views: Vec<(f32, f32)>,
+    /// With --plane: also show the result under this light θ,φ (see --view).
+    #[arg(long = "light", value_name = "θ,φ", value_parser = super::shots::parse_angles, requires = "plane")]
+    lights: Vec<(f32, f32)>,
     /// Output: a binary PLY for a mesh, a directory for --plane.
     #[arg(short, long, value_name = "OUT")]
     output: PathBuf,
-    /// Sample texels per model unit (the texture's size on the surface).
-    #[arg(long, group = "density")]
+    /// Sample texels per model unit (the texture's size on the surface). One of --scale,
+    /// --texels-across and --vertices sets the size; they exclude each other.
+    #[arg(long, group = "density", value_parser = super::positive_number)]
     scale: Option<f32>,
-    /// Sample texels across the mesh's largest bounding-box side [default: 4 × the sample width].
-    #[arg(long, group = "density")]
+    /// Sample texels across the mesh's largest bounding-box side [default: 4 × the sample
+    /// width]. Excludes --scale and --vertices.
+    #[arg(long, group = "density", value_parser = super::positive_number)]
     texels_across: Option<f32>,
-    /// Vertices of the finest synthesis mesh (one vertex spacing = one texel).
+    /// Vertices of the finest synthesis mesh (one vertex spacing = one texel); at least 4 on
+    /// the coarsest level, 4 times more per finer level, and one neighbourhood (64 for 3
+    /// levels). Excludes --scale and --texels-across.
     #[arg(long, group = "density")]
     vertices: Option<usize>,
     /// Tangent directions: smooth (a relaxed field), axis:x,y,z (a world direction
@@ -49,19 +64,20 @@ pub struct SynthArgs {
     #[arg(long, default_value = "smooth")]
     orient: String,
     /// Candidates per kNN list (at most the analysis' k; default: the analysis' k).
-    #[arg(long)]
+    #[arg(long, value_parser = super::at_least(1))]
     k: Option<usize>,
     /// Pyramid levels to use (at most the analysis' levels; default: all).
-    #[arg(long)]
+    #[arg(long, value_parser = super::at_least(1))]
     levels: Option<usize>,
-    /// Side of the square neighbourhood template (odd).
-    #[arg(long, default_value_t = 5)]
+    /// Side of the square neighbourhood template (odd, at least 3).
+    #[arg(long, default_value_t = 7, value_parser = super::odd_side)]
     neighborhood: usize,
     /// Candidate search.
     #[arg(long, value_enum, default_value_t = SearchKind::Kcoherence)]
     search: SearchKind,
-    /// The engine's parts, named after their paper.
-    #[arg(long, default_value = "tong2002")]
+    /// The engine's parts, named after their paper: appearance (default: Tong's engine
+    /// matched on appearance vectors) or tong2002 (Tong's texton distances through Γ).
+    #[arg(long, default_value = "appearance")]
     preset: String,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
@@ -88,26 +104,25 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if let Some(report) = &args.report {
         check_target(report, true)?;
     }
-    if args.neighborhood < 3 || args.neighborhood % 2 == 0 {
-        bail!("--neighborhood {} must be odd and at least 3", args.neighborhood);
-    }
     let manifest = crate::analysis::store::read_manifest(&args.analysis)?;
     let levels = args.levels.unwrap_or(manifest.levels.len());
-    let sample = Sample::open(&args.analysis, levels)?;
-    let k = args.k.unwrap_or(manifest.k);
-    if k == 0 || k > manifest.k {
-        bail!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k);
+    if levels > manifest.levels.len() {
+        return Err(usage(format!("--levels {levels}: the analysis has {} level(s)", manifest.levels.len())));
     }
+    if let Some(n) = args.vertices {
+        check_vertices(n, "--vertices", levels, args.neighborhood)?;
+    }
+    let k = args.k.unwrap_or(manifest.k);
+    if k > manifest.k {
+        return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
+    }
+    let sample = Sample::open(&args.analysis, levels)?;
     let search = match args.search {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let params = SynthParams {
-        preset: Preset::by_name(&args.preset)?,
-        search,
-        neighborhood: args.neighborhood,
-        seed: args.seed,
-    };
+    let preset = Preset::by_name(&args.preset).map_err(usage)?;
+    let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
@@ -116,24 +131,37 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         (Some(mesh), None) => {
             let density = density(&args, manifest.width);
             params_json["orient"] = args.orient.clone().into();
-            params_json["density"] = format!("{density:?}").into();
+            params_json["density"] = density.to_string().into();
             surface(&args, mesh, &sample, &params, density, levels, &mut params_json, bars)?
         }
         (None, Some(size)) => {
             let result = synthesize_plane(&sample, size, &params, bars)?;
+            let probes = shown_probes(&args)?;
             let written =
-                write_plane(&result, &args.analysis, params_json.clone(), &args.output, args.force)?;
+                write_plane(&result, &args.analysis, &probes, params_json.clone(), &args.output, args.force)?;
             print_reports(&result.reports);
             eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
             result.reports
         }
-        _ => bail!("give either a MESH or --plane WxH"),
+        _ => return Err(usage("give either a MESH or --plane WxH")),
     };
     if let Some(report) = &args.report {
         let json = serde_json::json!({"params": params_json, "levels": reports});
         write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// The view/light pairs asked for with --view/--light (empty: the defaults).
+fn shown_probes(args: &SynthArgs) -> Result<Vec<crate::analysis::images::Probe>> {
+    if args.views.is_empty() && args.lights.is_empty() {
+        return Ok(Vec::new());
+    }
+    let views = if args.views.is_empty() { vec![(0.0, 0.0)] } else { args.views.clone() };
+    let lights = if args.lights.is_empty() { vec![(0.0, 0.0)] } else { args.lights.clone() };
+    let pairs: Vec<([f32; 2], [f32; 2])> =
+        views.iter().flat_map(|&(vt, vp)| lights.iter().map(move |&(lt, lp)| ([vt, vp], [lt, lp]))).collect();
+    Ok(crate::analysis::images::SampleImages::open(&args.analysis)?.probes_for(&pairs))
 }
 
 fn density(args: &SynthArgs, sample_width: usize) -> Density {
@@ -158,6 +186,13 @@ fn surface(
 ) -> Result<Vec<LevelReport>> {
     let orientation = Orientation::parse(&args.orient)?;
     let mesh = crate::mesh::load(mesh_path)?;
+    if !matches!(density, Density::Vertices(_)) {
+        let texel = density.texel(&mesh).map_err(usage)?;
+        let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * f64::from(texel).powi(2));
+        let flag = if args.scale.is_some() { "--scale" } else { "--texels-across" };
+        check_vertices(estimate.round() as usize, flag, levels, args.neighborhood)
+            .with_context(|| format!("{} at {density}", mesh_path.display()))?;
+    }
     let started = Instant::now();
     let pyramid = build_pyramid(&mesh, density, levels, &orientation, params, bars)
         .with_context(|| format!("preparing {}", mesh_path.display()))?;
@@ -186,6 +221,26 @@ fn surface(
         started.elapsed().as_secs_f64()
     );
     Ok(reports)
+}
+
+/// Refuses a finest mesh of `vertices` (set by `flag`) too small to synthesize `levels`
+/// levels on (each coarser level has a quarter of the vertices and the coarsest needs 4, as
+/// `remesh` does; the finest must hold at least one neighbourhood template) or beyond
+/// [`MAX_VERTICES`].
+fn check_vertices(vertices: usize, flag: &str, levels: usize, neighborhood: usize) -> Result<()> {
+    let least = (4usize << (2 * (levels.max(1) - 1)).min(60)).max(neighborhood * neighborhood);
+    if vertices < least {
+        return Err(usage(format!(
+            "{flag} gives a finest mesh of {vertices} vertices; {levels} level(s) with a \
+             {neighborhood}x{neighborhood} neighbourhood need at least {least}"
+        )));
+    }
+    if vertices > MAX_VERTICES {
+        return Err(usage(format!(
+            "{flag} gives a finest mesh of about {vertices} vertices; the limit is {MAX_VERTICES}"
+        )));
+    }
+    Ok(())
 }
 
 fn print_reports(reports: &[LevelReport]) {

@@ -4,20 +4,26 @@ use super::progress::Bars;
 use super::shots::{LightingArgs, OutputArgs, ShotArgs};
 use crate::progress::Progress;
 use crate::render::gpu::{Display, GpuLighting, GpuRenderer};
-use crate::render::scene::open_surface;
 use crate::render::{viewer, Material, SequenceWriter};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
-#[command(after_help = "Examples:\n  btfsynth view bunny.ply\n  \
+#[command(
+    override_usage = "btfsynth view [OPTIONS] <SURFACE>\n       \
+btfsynth view [OPTIONS] --headless -o <DIR> <SURFACE>",
+    after_help = "Examples:\n  btfsynth view bunny.ply\n  \
 btfsynth view bunny.ply --headless -o frames/ --frames 24 --size 1024x1024 --format png\n\n\
 Without --headless a window opens; its keys are printed when it does. The window shows the frame \
-rate, the light and the mode; S saves the frame into --save-dir.")]
+rate, the light and the mode; S saves the frame into --save-dir."
+)]
 pub struct ViewArgs {
     #[command(flatten)]
     shots: ShotArgs,
+    /// Output directory of --headless: the frames and contact.png.
+    #[arg(short, long, value_name = "DIR", required_if_eq("headless", "true"))]
+    output: Option<PathBuf>,
     #[command(flatten)]
     lighting: LightingArgs,
     #[command(flatten)]
@@ -71,7 +77,7 @@ fn quiet_wayland_probe() {
 }
 
 pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
-    let plan = args.shots.plan()?;
+    let plan = args.shots.plan();
     let (sun, environment) = args.lighting.lighting()?;
     let lighting = GpuLighting { sun, environment, shadows: !args.no_shadows };
     quiet_wayland_probe();
@@ -79,14 +85,16 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
         if !args.save_dir.is_dir() {
             anyhow::bail!("--save-dir {}: not a directory", args.save_dir.display());
         }
-        let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
+        let (scene, analysis) = args.shots.open_surface()?;
         let material = Material::open(&analysis)?;
         let options = viewer::ViewerOptions { mode: args.shots.mode, lighting, save_dir: args.save_dir };
         return Ok(viewer::run(scene, material, &plan, options)?);
     }
-    let dir = args.out.output.clone().context("--headless renders into a directory: give -o DIR")?;
-    let mut writer = SequenceWriter::new(&dir, &[args.out.format], args.out.force)?;
-    let (scene, analysis) = open_surface(&args.shots.surface, args.shots.analysis.as_deref())?;
+    let Some(dir) = &args.output else {
+        return Err(super::usage("--headless renders into a directory: give -o DIR"));
+    };
+    let mut writer = SequenceWriter::new(dir, &[args.out.format], args.out.force)?;
+    let (scene, analysis) = args.shots.open_surface()?;
     let material = Material::open(&analysis)?;
     let vertices = scene.mesh.vertex_count();
     let mut renderer = GpuRenderer::headless(scene, material, plan.size, lighting)?;
@@ -103,13 +111,13 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     bars.finish();
     let dir = writer.finish()?;
     eprintln!(
-        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {:?} mode, {} samples per pixel): \
+        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode, {} samples per pixel): \
          {:.1} ms per frame",
         shots.len(),
         plan.size.0,
         plan.size.1,
         renderer.adapter_name(),
-        args.shots.mode,
+        args.shots.mode_name(),
         renderer.target_format().samples,
         1e3 * seconds / shots.len() as f64
     );

@@ -11,6 +11,8 @@
 //! - [`remesh`]: isotropic remeshing to a target edge length or vertex count
 //!   (Botsch & Kobbelt 2004), which gives synthesis evenly spaced samples.
 //! - [`ply::write`](mod@ply::write): binary PLY output with named per-vertex properties.
+//! - [`textured`]: a mesh exactly as its file gives it, with its texture coordinates (for
+//!   `export`).
 //!
 //! ```no_run
 //! use btfsynth::mesh::{self, remesh};
@@ -33,6 +35,7 @@ pub mod off;
 pub mod ply;
 pub mod prepare;
 pub mod remesh;
+pub mod textured;
 pub mod topology;
 mod weld;
 
@@ -155,9 +158,15 @@ pub(crate) mod test_meshes {
     use super::Mesh;
     use glam::Vec3;
 
-    /// Path of a mesh in the shared test data.
-    pub fn shared(name: &str) -> std::path::PathBuf {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/meshes").join(name)
+    /// Path of a mesh bundled in `data/` (shipped with the crate, so always there).
+    pub fn bundled(name: &str) -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
+    }
+
+    /// Path of a mesh in the shared test data, or None (with a line saying `test` was
+    /// skipped) where it is absent; see [`crate::testdata`].
+    pub fn shared(test: &str, name: &str) -> Option<std::path::PathBuf> {
+        crate::testdata::shared_data(test, &format!("meshes/{name}"))
     }
 
     /// An axis-aligned unit cube, 8 vertices and 12 outward-facing triangles.

@@ -73,7 +73,7 @@ fn concatenate(models: Vec<tobj::Model>, path: &Path) -> Result<Soup> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::{load, test_meshes::shared, topology};
+    use crate::mesh::{load, test_meshes::bundled, test_meshes::shared, topology};
 
     fn parse_str(s: &str) -> Result<Soup> {
         parse(s.as_bytes(), Path::new("t.obj"))
@@ -117,7 +117,11 @@ mod tests {
 
     #[test]
     fn bunny10k_with_negative_indices_loads_as_one_surface() {
-        let mesh = load(&shared("bunny10k-uv.obj")).expect("loads");
+        let Some(path) = shared("bunny10k_with_negative_indices_loads_as_one_surface", "bunny10k-uv.obj")
+        else {
+            return;
+        };
+        let mesh = load(&path).expect("loads");
         let s = topology::summary(&mesh);
         // Positions are shared across the UV atlas's charts, so the surface is one piece
         // whose boundary is the bunny's own (its holes), not the 6,451-UV chart seams.
@@ -133,9 +137,9 @@ mod tests {
         // share no seam: the spout and the lid stand 1.1 and 0.5 units (3 % and 1.5 % of the
         // bounding-box diagonal) from the body, and the handle touches it at one vertex,
         // which is split because a vertex joining two surfaces has no single one-ring.
-        let soup = crate::mesh::load::read_soup(&shared("teapot.obj")).expect("parses");
+        let soup = crate::mesh::load::read_soup(&bundled("teapot.obj")).expect("parses");
         assert_eq!(soup.positions.len(), 792);
-        let mesh = load(&shared("teapot.obj")).expect("loads");
+        let mesh = load(&bundled("teapot.obj")).expect("loads");
         let s = topology::summary(&mesh);
         assert_eq!((s.vertices, s.faces), (529 + 1, 992), "{s}");
         assert_eq!((s.components, s.boundary_edges), (4, 64), "{s}");

@@ -15,12 +15,14 @@ pub use environment::Environment;
 pub use material::{Blend16, Material};
 pub mod camera;
 pub mod cpu;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod output;
 pub mod overlay;
 pub mod relight;
 pub mod scene;
 pub mod shadow_map;
+#[cfg(feature = "gpu")]
 pub mod viewer;
 
 pub use camera::{Camera, Orbit, Projection, Shot, ShotPlan};

@@ -103,7 +103,8 @@ impl Frame {
 }
 
 /// File format of the frames.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum FrameFormat {
     /// OpenEXR, linear f32 RGBA (lossless ZIP).
     #[default]

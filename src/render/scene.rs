@@ -6,14 +6,15 @@ use super::camera::Shot;
 use super::material::{Blend16, Material};
 use crate::mesh::frames::Frames;
 use crate::mesh::Mesh;
-use crate::synth::surface_map::{read_surface_ply, SurfaceMap};
+use crate::synth::surface_map::{read_surface_ply, SurfaceMap, ANALYSIS_FINGERPRINT_KEY, ANALYSIS_KEY};
 use crate::{Error, Result};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// How a point between vertices is shaded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Mode {
     /// Tong §6: a colour per vertex, interpolated across each triangle.
     Vertex,
@@ -252,34 +253,31 @@ impl Scene {
     }
 }
 
-/// Opens a surface map and finds its analysis: `analysis` if given, else the header's
-/// `analysis` path, tried as written (relative to the working directory) and then relative
-/// to the surface map's directory.
-pub fn open_surface(path: &Path, analysis: Option<&Path>) -> Result<(Scene, PathBuf)> {
+/// Opens a surface map and finds its analysis: `analysis` if given, else the one its header
+/// names (see [`SurfaceMap::find_analysis`]). With `verify`, the analysis must be the one the
+/// map was synthesized from ([`Error::AnalysisMismatch`] otherwise).
+pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Result<(Scene, PathBuf)> {
     let map = read_surface_ply(path)?;
     let dir = match analysis {
         Some(a) => a.to_path_buf(),
-        None => {
-            let written = map
-                .comments
-                .iter()
-                .find_map(|c| c.strip_prefix("analysis "))
-                .map(PathBuf::from)
-                .ok_or_else(|| Error::format(path, "no 'analysis' comment: pass --analysis DIR"))?;
-            let beside = path.parent().map(|p| p.join(&written));
-            match beside {
-                Some(b) if !written.exists() && b.exists() => b,
-                _ => written,
-            }
-        }
+        None => map.find_analysis(path).ok_or_else(|| {
+            let named = map.comment(ANALYSIS_KEY).unwrap_or("none");
+            Error::invalid(format!(
+                "{}: its analysis ({named}) is missing, beside the map and at its recorded path; pass --analysis DIR",
+                path.display()
+            ))
+        })?,
     };
     if !dir.join(crate::analysis::store::MANIFEST).is_file() {
         return Err(Error::invalid(format!(
-            "{}: its analysis {} is missing (no {}); pass --analysis DIR",
+            "{}: the analysis {} is missing (no {})",
             path.display(),
             dir.display(),
             crate::analysis::store::MANIFEST
         )));
+    }
+    if verify {
+        crate::analysis::store::verify_fingerprint(&dir, path, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
     }
     Ok((Scene::from_surface_map(map), dir))
 }

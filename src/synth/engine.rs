@@ -1,9 +1,11 @@
-//! The per-vertex synthesis engine (Tong §5): distances through Γ, candidate sets, passes.
+//! The per-vertex synthesis engine (Tong §5): one pass visits every vertex and gives it the
+//! candidate texel whose neighbourhood best matches the vertex's template.
 
+use super::candidates::{full_candidates, Coherence, Search};
+use super::metric::Metric;
 use super::sample::SampleLevel;
-use super::target::{Slot, TargetLevel, OUTSIDE};
+use super::target::TargetLevel;
 use rand::seq::SliceRandom;
-use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 /// The surface texton map of one level: per vertex a texton label and a sample coordinate.
@@ -13,25 +15,13 @@ pub struct State {
     pub uv: Vec<[i32; 2]>,
 }
 
-/// How candidates are formed (Tong §5.2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Search {
-    /// The union of the kNN lists (first `k` entries) at the forward-shifted coordinates of
-    /// the patch's vertices.
-    KCoherence { k: usize },
-    /// Every pixel of the sample whose neighbourhood lies inside it (Table 2's full search).
-    Full,
-}
-
 /// Order in which a pass visits the vertices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum VisitOrder {
     /// A fresh seeded permutation every pass.
     Random,
-    /// Vertex index order.
+    /// Vertex index order (scanline order on a plane).
     Sequential,
-    /// Breadth-first growth from a random vertex through the patch adjacency.
-    Grow,
 }
 
 /// What one pass found.
@@ -43,156 +33,103 @@ pub struct PassStats {
     pub mean_candidates: f64,
 }
 
-/// A template pixel ready for matching: s = Σ wₐ t(textonsₐ) and s·s, computed once per
-/// vertex so each candidate pixel costs `count` Γ lookups and one diagonal term.
-#[derive(Clone, Copy)]
-pub(crate) struct Term {
-    textons: [u16; 3],
-    weights: [f32; 3],
-    count: usize,
-    ss: f32,
+/// How a vertex picks among its candidates.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum Select {
+    /// The smallest distance (Tong §5.1).
+    Argmin,
+    /// Choosy sampling (Castellanos and Williams §3.11, adapted): the distance is multiplied
+    /// by 1 + strength · excess², excess being how far beyond its fair share (output
+    /// vertices over candidate texels) the texel is already used on this level. Exact matches
+    /// (distance 0) keep winning, so coherent copies are untouched; among inexact ones, the
+    /// texels the level leans on too often lose, which keeps the first-order statistics.
+    Choosy { strength: f32 },
 }
 
-/// The terms of `slots` under `labels`. With `known`, vertices not yet synthesized are left
-/// out (their weight goes to the others); a pixel with none known is skipped (count 0).
-pub(crate) fn terms(
-    slots: &[Slot],
-    labels: &[u16],
-    sample: &SampleLevel,
-    known: Option<&[bool]>,
-) -> Vec<Term> {
-    slots
-        .iter()
-        .map(|slot| {
-            let mut term =
-                Term { textons: [sample.default_texton(); 3], weights: [0.0; 3], count: 0, ss: 0.0 };
-            let mut total = 0.0;
-            for a in 0..3 {
-                let (vertex, weight) = (slot.vertices[a], slot.weights[a]);
-                if weight == 0.0 || (vertex != OUTSIDE && known.is_some_and(|k| !k[vertex as usize])) {
-                    continue;
-                }
-                term.textons[term.count] =
-                    if vertex == OUTSIDE { sample.default_texton() } else { labels[vertex as usize] };
-                term.weights[term.count] = weight;
-                term.count += 1;
-                total += weight;
-            }
-            for a in 0..term.count {
-                term.weights[a] /= total;
-            }
-            for a in 0..term.count {
-                for b in 0..term.count {
-                    term.ss +=
-                        term.weights[a] * term.weights[b] * sample.dot(term.textons[a], term.textons[b]);
-                }
-            }
-            term
-        })
-        .collect()
-}
-
-/// Σ over template pixels of ‖s − t‖² against the sample neighbourhood centred at (px, py);
-/// stops early once it exceeds `bound`.
-pub(crate) fn distance(
-    terms: &[Term],
-    sample: &SampleLevel,
-    template: usize,
-    (px, py): (i64, i64),
-    bound: f32,
-) -> f32 {
-    let r = (template / 2) as i64;
-    let mut d = 0.0;
-    for (i, term) in terms.iter().enumerate().filter(|(_, t)| t.count > 0) {
-        let t = sample.label_at(px + (i % template) as i64 - r, py + (i / template) as i64 - r);
-        let mut st = 0.0;
-        for a in 0..term.count {
-            st += term.weights[a] * sample.dot(term.textons[a], t);
-        }
-        d += term.ss - 2.0 * st + sample.dot(t, t);
-        if d > bound {
-            break;
-        }
-    }
-    d.max(0.0)
-}
-
-/// The coarser level while refining: its state and sample, for two-level neighbourhoods.
-pub struct Parent<'a> {
-    pub state: &'a State,
-    pub sample: &'a SampleLevel,
-}
-
-/// What a pass may look at besides the current level.
-pub struct PassContext<'a> {
-    /// The coarser level, for two-level neighbourhoods (second pass of a finer level).
-    pub parent: Option<&'a Parent<'a>>,
+/// How a pass runs.
+#[derive(Clone, Copy, Debug)]
+pub struct PassPlan {
     pub search: Search,
-    /// Causal pass: only vertices already synthesized in this pass count, in distances and
-    /// as sources of candidates; the first vertex of a region starts from a random pixel.
+    pub select: Select,
+    /// Distances of candidates that start a new copy (not a patch vertex's forward shift)
+    /// are multiplied by 1 + this (Ashikhmin's and Hertzmann's coherence preference).
+    pub coherence_bias: f32,
+    /// Only vertices already synthesized in this pass count, in distances and as sources of
+    /// candidates; a vertex with none starts from a random texel.
     pub causal: bool,
 }
 
-/// One pass over `level`: every vertex takes the candidate pixel whose neighbourhood best
-/// matches its own (plus the parent neighbourhood's when the context has a parent).
-pub fn pass(
+/// The coarser level while refining: its state and metric, for two-level neighbourhoods
+/// (a candidate (x, y) is compared there at (x/2, y/2)).
+pub(crate) struct Parent<'a, M> {
+    pub state: &'a State,
+    pub metric: M,
+}
+
+/// One pass over `level`: every vertex takes the candidate whose neighbourhood best matches
+/// its own under `metric` (plus its parent neighbourhood's, when there is a parent).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pass<M: Metric>(
     level: &TargetLevel,
     state: &mut State,
     sample: &SampleLevel,
-    context: &PassContext,
+    metric: &M,
+    parent: Option<&Parent<M>>,
+    plan: &PassPlan,
     order: &[u32],
     rng: &mut ChaCha8Rng,
 ) -> PassStats {
-    let r = level.template / 2;
-    let full: Vec<u32> = match context.search {
-        Search::Full => full_candidates(sample, r),
-        Search::KCoherence { .. } => Vec::new(),
-    };
-    let mut known = context.causal.then(|| vec![false; level.vertices]);
-    let mut stamp = vec![u32::MAX; sample.width * sample.height];
-    let mut candidates = Vec::new();
+    let radius = level.template / 2;
+    let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, radius));
+    let mut coherence = Coherence::new(sample);
+    let mut known = plan.causal.then(|| vec![false; level.vertices]);
+    let (mut own, mut up) = (M::Query::default(), M::Query::default());
+    let (mut slots, mut parent_slots, mut shifts) = (Vec::new(), Vec::new(), Vec::new());
     let (mut best_sum, mut candidate_sum) = (0.0f64, 0usize);
-    for (visit, &v) in order.iter().enumerate() {
+    let mut usage = Usage::new(sample, state, radius, plan.select);
+    for &v in order {
         let v = v as usize;
-        let own = terms(level.slots_of(v), &state.labels, sample, known.as_deref());
-        let parent_terms = context
-            .parent
-            .map(|p| (terms(level.parent_slots_of(v), &p.state.labels, p.sample, None), p.sample));
-        let set: &[u32] = match context.search {
-            Search::Full => &full,
-            Search::KCoherence { k } => {
-                let sources = Sources { shifts: level.shifts_of(v), known: known.as_deref() };
-                coherence_candidates(
-                    &sources,
-                    state,
-                    sample,
-                    (k, r),
-                    context.parent.is_some(),
-                    visit as u32,
-                    &mut stamp,
-                    &mut candidates,
-                );
-                if candidates.is_empty() {
-                    let seed = random_pixel(sample, r, rng);
-                    candidates.push(seed);
+        metric.prepare(level.slots_of(v, &mut slots), state, known.as_deref(), &mut own);
+        if let Some(p) = parent {
+            p.metric.prepare(level.parent_slots_of(v, &mut parent_slots), p.state, None, &mut up);
+        }
+        let seed;
+        let mut flags: &[bool] = &[];
+        let set: &[u32] = match (&full, plan.search) {
+            (Some(all), _) => all,
+            (None, search) => {
+                let k = if let Search::KCoherence { k } = search { k } else { sample.k };
+                let sources = level.shifts_of(v, &mut shifts);
+                let gathered =
+                    coherence.gather(sources, known.as_deref(), state, sample, (k, radius, parent.is_some()));
+                if gathered.is_empty() {
+                    let [x, y] = super::start::random_texel(sample, radius, rng);
+                    seed = [(y as usize * sample.width + x as usize) as u32];
+                    &seed
+                } else {
+                    flags = &coherence.coherent;
+                    &coherence.out
                 }
-                &candidates
             }
         };
         let mut best = (f32::INFINITY, state.uv[v]);
-        for &q in set {
-            let (qx, qy) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
-            let mut d = distance(&own, sample, level.template, (qx, qy), best.0);
-            if let Some((pt, ps)) = &parent_terms {
-                if d < best.0 {
-                    d += distance(pt, ps, level.parent_template, (qx / 2, qy / 2), best.0 - d);
-                }
+        let current = state.uv[v];
+        for (i, &q) in set.iter().enumerate() {
+            let (x, y) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
+            let fresh = if flags.get(i).copied().unwrap_or(true) { 1.0 } else { 1.0 + plan.coherence_bias };
+            let factor = usage.factor(q, current) * fresh;
+            let bound = best.0 / factor;
+            let mut d = metric.cost(&own, x, y, bound);
+            if let (Some(p), true) = (parent, d < bound) {
+                d += p.metric.cost(&up, x / 2, y / 2, bound - d);
             }
+            let d = d * factor;
             if d < best.0 {
-                best = (d, [qx as i32, qy as i32]);
+                best = (d, [x as i32, y as i32]);
             }
         }
         if best.0.is_finite() {
+            usage.moved(current, best.1);
             state.uv[v] = best.1;
             state.labels[v] = sample.label_at(best.1[0] as i64, best.1[1] as i64);
             best_sum += best.0 as f64;
@@ -206,136 +143,63 @@ pub fn pass(
     PassStats { mean_best: best_sum / n, mean_candidates: candidate_sum as f64 / n }
 }
 
-/// Pixels whose `r` neighbourhood lies inside the sample (all of them when it tiles).
-fn full_candidates(sample: &SampleLevel, r: usize) -> Vec<u32> {
-    let mut all: Vec<u32> = (0..sample.height as i64)
-        .flat_map(|y| (0..sample.width as i64).map(move |x| (x, y)))
-        .map(|(x, y)| sample.candidate_pixel(x, y, r) as u32)
-        .collect();
-    all.sort_unstable();
-    all.dedup();
-    all
+/// How often each texel is in use on the level, for [`Select::Choosy`].
+struct Usage {
+    width: usize,
+    /// Per texel, the vertices whose coordinate it is (empty for [`Select::Argmin`]).
+    count: Vec<u32>,
+    fair: f32,
+    strength: f32,
 }
 
-/// The patch vertices a vertex's candidates come from; with `known`, only those already
-/// synthesized in this pass.
-struct Sources<'a> {
-    shifts: &'a [(u32, [f32; 2])],
-    known: Option<&'a [bool]>,
-}
-
-/// k-coherence (Tong §5.2): forward-shift every source vertex's coordinate by its offset and
-/// take that pixel's kNN list (first `k` entries); deduplicated with a per-visit stamp.
-#[allow(clippy::too_many_arguments)]
-fn coherence_candidates(
-    sources: &Sources,
-    state: &State,
-    sample: &SampleLevel,
-    (k, r): (usize, usize),
-    two_level: bool,
-    visit: u32,
-    stamp: &mut [u32],
-    out: &mut Vec<u32>,
-) {
-    out.clear();
-    for &(u, offset) in sources.shifts {
-        if sources.known.is_some_and(|known| !known[u as usize]) {
-            continue;
+impl Usage {
+    fn new(sample: &SampleLevel, state: &State, radius: usize, select: Select) -> Self {
+        let Select::Choosy { strength } = select else {
+            return Usage { width: sample.width, count: Vec::new(), fair: 1.0, strength: 0.0 };
+        };
+        let mut count = vec![0u32; sample.width * sample.height];
+        for &[x, y] in &state.uv {
+            count[y as usize * sample.width + x as usize] += 1;
         }
-        let [su, sv] = state.uv[u as usize];
-        let x = (su as f32 - offset[0]).round() as i64;
-        let y = (sv as f32 - offset[1]).round() as i64;
-        let pixel = sample.candidate_pixel(x, y, r);
-        for &q in sample.list(pixel, k, two_level) {
-            if stamp[q as usize] != visit {
-                stamp[q as usize] = visit;
-                out.push(q);
-            }
+        let candidates = full_candidates(sample, radius).len().max(1);
+        Usage {
+            width: sample.width,
+            count,
+            fair: (state.uv.len() as f32 / candidates as f32).max(1.0),
+            strength,
         }
     }
-}
 
-/// A uniformly random pixel whose `radius` neighbourhood lies inside the sample.
-fn random_pixel(sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -> u32 {
-    sample.candidate_pixel(
-        rng.random_range(0..sample.width as i64),
-        rng.random_range(0..sample.height as i64),
-        radius,
-    ) as u32
-}
+    /// The factor on texel `q`'s distance for a vertex now at `current`.
+    #[inline]
+    fn factor(&self, q: u32, current: [i32; 2]) -> f32 {
+        let Some(&n) = self.count.get(q as usize) else { return 1.0 };
+        let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
+        let excess = ((n - own) as f32 / self.fair - 1.0).max(0.0);
+        1.0 + self.strength * excess * excess
+    }
 
-/// Random sample coordinates for every vertex (the coarsest level's start).
-pub fn random_state(vertices: usize, sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -> State {
-    let uv: Vec<[i32; 2]> = (0..vertices)
-        .map(|_| {
-            let p = random_pixel(sample, radius, rng) as usize;
-            [(p % sample.width) as i32, (p / sample.width) as i32]
-        })
-        .collect();
-    let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
-    State { labels, uv }
-}
-
-/// First pass of a finer level (Tong §5.1): coordinates derived from the coarser level,
-/// labels fetched from this level's texton map.
-pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel) -> State {
-    let uv: Vec<[i32; 2]> = level
-        .parents
-        .iter()
-        .map(|link| {
-            let [cx, cy] = coarse.uv[link.vertex as usize];
-            let (x, y) = sample.bring_inside(
-                (2 * cx) as i64 + link.offset[0].round() as i64,
-                (2 * cy) as i64 + link.offset[1].round() as i64,
-            );
-            [x as i32, y as i32]
-        })
-        .collect();
-    let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
-    State { labels, uv }
+    fn moved(&mut self, from: [i32; 2], to: [i32; 2]) {
+        if !self.count.is_empty() {
+            self.count[from[1] as usize * self.width + from[0] as usize] -= 1;
+            self.count[to[1] as usize * self.width + to[0] as usize] += 1;
+        }
+    }
 }
 
 /// The visiting order of one pass over `level`.
 pub fn visit_order(level: &TargetLevel, order: VisitOrder, rng: &mut ChaCha8Rng) -> Vec<u32> {
     let mut ids: Vec<u32> = (0..level.vertices as u32).collect();
-    match order {
-        VisitOrder::Random => ids.shuffle(rng),
-        VisitOrder::Sequential => {}
-        VisitOrder::Grow => ids = grow_order(level, rng),
+    if order == VisitOrder::Random {
+        ids.shuffle(rng);
     }
     ids
 }
 
-/// Breadth-first over the patch adjacency from a random vertex (a new random start for each
-/// disconnected part), so a causal pass extends one coherent region instead of many seeds.
-fn grow_order(level: &TargetLevel, rng: &mut ChaCha8Rng) -> Vec<u32> {
-    let mut starts: Vec<u32> = (0..level.vertices as u32).collect();
-    starts.shuffle(rng);
-    let mut seen = vec![false; level.vertices];
-    let mut order = Vec::with_capacity(level.vertices);
-    let mut queue = std::collections::VecDeque::new();
-    for start in starts {
-        if seen[start as usize] {
-            continue;
-        }
-        seen[start as usize] = true;
-        queue.push_back(start);
-        while let Some(v) = queue.pop_front() {
-            order.push(v);
-            for &(u, _) in level.shifts_of(v as usize) {
-                if !seen[u as usize] {
-                    seen[u as usize] = true;
-                    queue.push_back(u);
-                }
-            }
-        }
-    }
-    order
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::synth::metric::GammaMetric;
     use crate::synth::target::grid_levels;
     use rand::SeedableRng;
 
@@ -384,6 +248,7 @@ mod tests {
             knn_two_level: None,
             k,
             tileable: true,
+            appearance: None,
         }
     }
 
@@ -397,8 +262,10 @@ mod tests {
         let before = state.clone();
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order: Vec<u32> = (0..32 * 32).collect();
-        let context = PassContext { parent: None, search: Search::Full, causal: false };
-        pass(level, &mut state, &sample, &context, &order, &mut rng);
+        let metric = GammaMetric { sample: &sample, template: 5 };
+        let plan =
+            PassPlan { search: Search::Full, select: Select::Argmin, coherence_bias: 0.0, causal: false };
+        pass(level, &mut state, &sample, &metric, None, &plan, &order, &mut rng);
         let interior_changed = (0..32 * 32)
             .filter(|&v| {
                 (2..30).contains(&(v % 32))

@@ -9,18 +9,21 @@
 //! | `textons.png` | the labels in the analysis' false colours |
 //! | `uv.png` | x and y as red and green, scaled to the sample size |
 //! | `result.png` | the sample image closest to normal view and light, copied through `uv` |
+//! | `result_tv…_pv…_tl…_pl….png` | the same under each shown view/light pair (see [`write_plane`]) |
+//! | `sample_tv…_pv…_tl…_pl….png` | the sample image of that pair, to compare with |
+//! | `result_<kind>.png\|exr` | each material map of the analysis copied through `uv` ([`crate::maps`]) |
 
 use super::engine::State;
 use super::target::grid_levels;
 use super::{synthesize, LevelReport, Sample, SynthParams};
+use crate::analysis::images::{Probe, SampleImages};
 use crate::analysis::knn::parent_size;
 use crate::analysis::npy;
 use crate::analysis::store::{false_colours, save_png};
-use crate::btf::image_io::linear_to_srgb8;
+use crate::eval::Picture;
 use crate::fsutil::{write_file_atomic, StagedDir};
 use crate::progress::Progress;
 use crate::{Error, Result};
-use half::f16;
 use std::path::{Path, PathBuf};
 
 /// The manifest of a plane result.
@@ -57,10 +60,13 @@ pub fn synthesize_plane(
     Ok(PlaneResult { width, height, state, reports })
 }
 
-/// Writes `result` (synthesized from the analysis in `analysis_dir`) into the directory `out`.
+/// Writes `result` (synthesized from the analysis in `analysis_dir`) into the directory `out`,
+/// showing it under `probes` (the sample's default view/light pairs when empty: head-on,
+/// light at 45° and grazing light, where the stack has them).
 pub fn write_plane(
     result: &PlaneResult,
     analysis_dir: &Path,
+    probes: &[Probe],
     params_json: serde_json::Value,
     out: &Path,
     overwrite: bool,
@@ -71,21 +77,10 @@ pub fn write_plane(
     npy::write(&dir.join("labels.npy"), &[h, w], &result.state.labels)?;
     let uv: Vec<u32> = result.state.uv.iter().flat_map(|&[x, y]| [x as u32, y as u32]).collect();
     npy::write(&dir.join("uv.npy"), &[h, w, 2], &uv)?;
+    write_texton_picture(&result.state.labels, (w, h), analysis_dir, &dir.join("textons.png"))?;
 
-    let embedding: npy::NpyArray<f32> = npy::read(&analysis_dir.join("level0_embedding.npy"))?;
-    let dims = embedding.shape.get(1).copied().unwrap_or(0);
-    let embedding = ndarray::Array2::from_shape_vec((embedding.shape[0], dims), embedding.data)
-        .map_err(|e| Error::format(analysis_dir.join("level0_embedding.npy"), e.to_string()))?;
-    let colours = false_colours(&embedding);
-    let rgb: Vec<u8> = result
-        .state
-        .labels
-        .iter()
-        .flat_map(|&l| colours.get(l as usize).copied().unwrap_or([0; 3]))
-        .collect();
-    save_png(&dir.join("textons.png"), w, h, &rgb)?;
-
-    let (sw, sh, image) = closest_to_normal_image(analysis_dir)?;
+    let images = SampleImages::open(analysis_dir)?;
+    let (sw, sh) = (images.width, images.height);
     let uv_rgb: Vec<u8> = result
         .state
         .uv
@@ -99,23 +94,28 @@ pub fn write_plane(
         })
         .collect();
     save_png(&dir.join("uv.png"), w, h, &uv_rgb)?;
-    let copied: Vec<u8> = result
-        .state
-        .uv
-        .iter()
-        .flat_map(|&[x, y]| {
-            let o = (y as usize * sw + x as usize) * 3;
-            [0, 1, 2].map(|c| linear_to_srgb8(image.get(o + c).map_or(0.0, |v| v.to_f32())))
-        })
-        .collect();
-    save_png(&dir.join("result.png"), w, h, &copied)?;
+    let defaults = images.default_probes();
+    save_picture(&images.through(defaults[0].image, w, h, &result.state.uv), &dir.join("result.png"))?;
+    let shown = if probes.is_empty() { defaults } else { probes.to_vec() };
+    for probe in &shown {
+        let tag = probe.angles_tag();
+        save_picture(
+            &images.through(probe.image, w, h, &result.state.uv),
+            &dir.join(format!("result_{tag}.png")),
+        )?;
+        save_picture(&images.picture(probe.image), &dir.join(format!("sample_{tag}.png")))?;
+    }
+    crate::maps::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
 
+    let fingerprint = crate::analysis::store::read_manifest(analysis_dir)?.source.fingerprint;
     let manifest = serde_json::json!({
         "kind": "plane",
         "analysis": analysis_dir.display().to_string(),
+        "analysis_fingerprint": fingerprint,
         "width": w,
         "height": h,
         "params": params_json,
+        "shown": shown,
         "levels": result.reports,
     });
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
@@ -123,23 +123,27 @@ pub fn write_plane(
     staged.commit()
 }
 
-/// The sample image whose view and light are nearest the normal (θ_light + θ_view least).
-fn closest_to_normal_image(analysis_dir: &Path) -> Result<(usize, usize, Vec<f16>)> {
-    let directions: npy::NpyArray<f32> = npy::read(&analysis_dir.join("directions.npy"))?;
-    let images: npy::NpyArray<f16> = npy::read(&analysis_dir.join("images.npy"))?;
-    let bad = || Error::format(analysis_dir.join("images.npy"), "expected shape [n, h, w, 3]");
-    let [n, h, w, 3] = images.shape[..] else { return Err(bad()) };
-    let best = (0..n)
-        .min_by(|&a, &b| {
-            let key = |i: usize| {
-                directions.data.get(4 * i).copied().unwrap_or(0.0)
-                    + directions.data.get(4 * i + 2).copied().unwrap_or(0.0)
-            };
-            key(a).total_cmp(&key(b))
-        })
-        .ok_or_else(bad)?;
-    let per = w * h * 3;
-    Ok((w, h, images.data[best * per..(best + 1) * per].to_vec()))
+/// The labels in the analysis' false colours.
+fn write_texton_picture(
+    labels: &[u16],
+    (w, h): (usize, usize),
+    analysis_dir: &Path,
+    path: &Path,
+) -> Result<()> {
+    let embedding: npy::NpyArray<f32> = npy::read(&analysis_dir.join("level0_embedding.npy"))?;
+    let dims = embedding.shape.get(1).copied().unwrap_or(0);
+    let embedding = ndarray::Array2::from_shape_vec((embedding.shape[0], dims), embedding.data)
+        .map_err(|e| Error::format(analysis_dir.join("level0_embedding.npy"), e.to_string()))?;
+    let colours = false_colours(&embedding);
+    let rgb: Vec<u8> =
+        labels.iter().flat_map(|&l| colours.get(l as usize).copied().unwrap_or([0; 3])).collect();
+    save_png(path, w, h, &rgb)
+}
+
+/// An sRGB picture as an 8-bit PNG.
+fn save_picture(picture: &Picture, path: &Path) -> Result<()> {
+    let rgb: Vec<u8> = picture.rgb.iter().flat_map(|p| p.map(|v| (v * 255.0).round() as u8)).collect();
+    save_png(path, picture.width, picture.height, &rgb)
 }
 
 /// Reads a plane result's labels and coordinates back.

@@ -22,6 +22,78 @@ pub struct SampleLevel {
     pub knn_two_level: Option<Vec<u32>>,
     pub k: usize,
     pub tileable: bool,
+    /// Per-pixel appearance vectors, if the analysis has them (written since they exist).
+    pub appearance: Option<AppearanceMap>,
+}
+
+/// One level's appearance vectors, scaled to unit total variance per pixel (so that levels
+/// weigh alike in two-level distances) and stored with a border of [`AppearanceMap::PAD`]
+/// texels (wrapped on tileable samples, the edge repeated otherwise) so that neighbourhood
+/// lookups never need a bounds check.
+#[derive(Clone, Debug)]
+pub struct AppearanceMap {
+    pub dims: usize,
+    stride: usize,
+    values: Vec<f32>,
+}
+
+impl AppearanceMap {
+    /// Border kept around the map: enough for templates up to 2·PAD + 1 texels wide.
+    pub const PAD: usize = 8;
+
+    /// From `[pixels][dims]` vectors of a `width × height` level.
+    pub fn new(width: usize, height: usize, dims: usize, vectors: &[f32], tileable: bool) -> Self {
+        let pixels = (width * height).max(1);
+        let mean: Vec<f64> = (0..dims)
+            .map(|d| vectors.iter().skip(d).step_by(dims).map(|&v| v as f64).sum::<f64>() / pixels as f64)
+            .collect();
+        let variance: f64 =
+            vectors.iter().enumerate().map(|(i, &v)| (v as f64 - mean[i % dims]).powi(2)).sum::<f64>()
+                / pixels as f64;
+        let scale = if variance > 0.0 { (1.0 / variance.sqrt()) as f32 } else { 1.0 };
+        let pad = Self::PAD as i64;
+        let stride = width + 2 * Self::PAD;
+        let mut values = Vec::with_capacity(stride * (height + 2 * Self::PAD) * dims);
+        for y in -pad..height as i64 + pad {
+            for x in -pad..width as i64 + pad {
+                let (sx, sy) = if tileable {
+                    (x.rem_euclid(width as i64), y.rem_euclid(height as i64))
+                } else {
+                    (x.clamp(0, width as i64 - 1), y.clamp(0, height as i64 - 1))
+                };
+                let o = (sy as usize * width + sx as usize) * dims;
+                values.extend(
+                    vectors[o..o + dims].iter().enumerate().map(|(d, &v)| (v - mean[d] as f32) * scale),
+                );
+            }
+        }
+        AppearanceMap { dims, stride, values }
+    }
+
+    /// The vector at (x, y), which may lie up to [`Self::PAD`] texels outside the level.
+    #[inline]
+    pub fn at(&self, x: i64, y: i64) -> &[f32] {
+        let o = ((y + Self::PAD as i64) as usize * self.stride + (x + Self::PAD as i64) as usize) * self.dims;
+        &self.values[o..o + self.dims]
+    }
+
+    /// Offset in floats of (dx, dy) from a vector, for reading a neighbourhood from one base.
+    #[inline]
+    pub fn offset(&self, dx: i64, dy: i64) -> isize {
+        (dy as isize * self.stride as isize + dx as isize) * self.dims as isize
+    }
+
+    /// Index in floats of the vector at (x, y).
+    #[inline]
+    pub fn index(&self, x: i64, y: i64) -> usize {
+        ((y + Self::PAD as i64) as usize * self.stride + (x + Self::PAD as i64) as usize) * self.dims
+    }
+
+    /// Every stored value (border included), for reading at [`Self::index`] + [`Self::offset`].
+    #[inline]
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
 }
 
 /// The analysed sample: its levels, finest first, and the manifest they came from.
@@ -51,6 +123,18 @@ impl Sample {
                 None => None,
             };
             let textons = info.textons + 1;
+            let appearance = match &info.files.appearance {
+                Some(name) => {
+                    let path = dir.join(name);
+                    let a: npy::NpyArray<f32> = npy::read(&path)?;
+                    let dims = a.shape.get(2).copied().unwrap_or(0);
+                    if a.shape.len() != 3 || a.shape[..2] != [info.height, info.width] || dims == 0 {
+                        return Err(Error::format(path, "appearance vectors do not match the texton map"));
+                    }
+                    Some(AppearanceMap::new(info.width, info.height, dims, &a.data, manifest.params.tileable))
+                }
+                None => None,
+            };
             let level = SampleLevel {
                 width: info.width,
                 height: info.height,
@@ -61,6 +145,7 @@ impl Sample {
                 knn: knn.data,
                 knn_two_level,
                 tileable: manifest.params.tileable,
+                appearance,
             };
             level.check().map_err(|m| Error::format(dir.join(&info.files.textons), m))?;
             Ok(level)
@@ -133,6 +218,47 @@ impl SampleLevel {
             (x.clamp(0, w - 1), y.clamp(0, h - 1))
         };
         (y * w + x) as usize
+    }
+
+    /// (x, y) folded into the texels whose `radius` neighbourhood lies inside the sample:
+    /// wrapped on tileable samples, mirrored at the band's edges otherwise. Unlike clamping,
+    /// mirroring never sends a whole run of coordinates onto one edge texel (where a smear or
+    /// streak would start).
+    pub fn fold_into_candidates(&self, x: i64, y: i64, radius: usize) -> [i32; 2] {
+        let fold = |v: i64, n: usize| -> i64 {
+            if self.tileable {
+                return v.rem_euclid(n as i64);
+            }
+            let r = (radius as i64).min((n as i64 - 1) / 2);
+            let (lo, hi) = (r, n as i64 - 1 - r);
+            if hi <= lo {
+                return lo;
+            }
+            let period = 2 * (hi - lo);
+            let m = (v - lo).rem_euclid(period);
+            lo + if m <= hi - lo { m } else { period - m }
+        };
+        [fold(x, self.width) as i32, fold(y, self.height) as i32]
+    }
+
+    /// (x, y) wrapped around the band of texels whose `radius` neighbourhood lies inside the
+    /// sample (the whole sample when it tiles), as if that band tiled.
+    pub fn wrap_into_candidates(&self, x: i64, y: i64, radius: usize) -> [i32; 2] {
+        let wrap = |v: i64, n: usize| -> i64 {
+            let r = if self.tileable { 0 } else { (radius as i64).min((n as i64 - 1) / 2) };
+            r + (v - r).rem_euclid((n as i64 - 2 * r).max(1))
+        };
+        [wrap(x, self.width) as i32, wrap(y, self.height) as i32]
+    }
+
+    /// Whether (x, y) is a texel whose `radius` neighbourhood lies inside the sample (any
+    /// texel of a tileable sample).
+    pub fn is_candidate(&self, x: i64, y: i64, radius: usize) -> bool {
+        let inside = |v: i64, n: usize| {
+            let r = (radius as i64).min((n as i64 - 1) / 2);
+            (r..n as i64 - r).contains(&v)
+        };
+        self.tileable || (inside(x, self.width) && inside(y, self.height))
     }
 
     /// The first `k` entries of pixel `p`'s list (two-level lists when asked and present).

@@ -8,7 +8,7 @@
 //! (dx, dy) = (i − r, j − r) texels; x runs along s and y runs *down* t (image rows), so the
 //! surface point of offset (dx, dy) is `v + texel·(dx·s − dy·t)`.
 
-use super::target::{ParentLink, Slot, TargetLevel};
+use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::frames::Frames;
 use crate::mesh::topology::{edge_incidences, one_rings, VertexRings};
@@ -21,9 +21,6 @@ use std::f32::consts::TAU;
 
 /// No face across this edge (a boundary, or a non-manifold edge, where flattening stops).
 const NO_FACE: u32 = u32::MAX;
-
-/// A patch vertex and its offset from the centre vertex, in texels.
-type Shift = (u32, [f32; 2]);
 
 /// Barycentric weights may dip this far below 0 for a pixel on an edge or corner.
 const INSIDE_TOLERANCE: f32 = 1e-5;
@@ -55,15 +52,14 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
             (resample(mesh, &patch, v as u32, texel, r), patch_shifts(&patch, texel, r))
         })
         .collect();
-    let mut level = TargetLevel { vertices: mesh.vertex_count(), template, ..TargetLevel::default() };
-    level.slots.reserve(mesh.vertex_count() * template * template);
-    level.shift_start.push(0);
-    for (slots, shifts) in per_vertex {
-        level.slots.extend(slots);
-        level.shifts.extend(shifts);
-        level.shift_start.push(level.shifts.len() as u32);
+    let mut slots = Vec::with_capacity(mesh.vertex_count() * template * template);
+    let (mut shift_start, mut shifts) = (vec![0u32], Vec::new());
+    for (vertex_slots, vertex_shifts) in per_vertex {
+        slots.extend(vertex_slots);
+        shifts.extend(vertex_shifts);
+        shift_start.push(shifts.len() as u32);
     }
-    Ok(level)
+    Ok(TargetLevel::new(mesh.vertex_count(), Neighbourhoods::Mesh { template, slots, shift_start, shifts }))
 }
 
 fn check_frames(mesh: &Mesh, frames: &Frames, name: &str) -> Result<()> {
@@ -340,7 +336,8 @@ fn patch_shifts(patch: &Patch, texel: f32, r: usize) -> Vec<Shift> {
 /// Links each vertex of `fine_level` to the coarser level (Tong §5.1, multi-resolution):
 /// its parent is a corner of the coarse triangle nearest to it, with the offset from that
 /// corner in fine texels, and its parent template is that corner's template in
-/// `coarse_parent_templates` (a [`surface_level`] of `coarse` at twice `fine_texel`).
+/// `coarse_parent_templates` (a [`surface_level`] of `coarse` at twice `fine_texel`, which
+/// the fine level keeps).
 ///
 /// Tong casts along the normal; the nearest point is used instead because it always
 /// exists (a ray can miss a coarse mesh that lies just inside a convex fine surface, or
@@ -352,7 +349,7 @@ pub fn link_levels(
     fine_level: &mut TargetLevel,
     coarse: &Mesh,
     coarse_frames: &Frames,
-    coarse_parent_templates: &TargetLevel,
+    coarse_parent_templates: TargetLevel,
     fine_texel: f32,
 ) -> Result<()> {
     check_frames(fine, fine_frames, "fine mesh")?;
@@ -367,9 +364,8 @@ pub fn link_levels(
     let bvh = TriangleBvh::new(coarse);
     let parents: Vec<ParentLink> =
         fine.positions().par_iter().map(|&p| parent_of(p, coarse, coarse_frames, &bvh, fine_texel)).collect();
-    let pt = coarse_parent_templates;
-    fine_level.parent_template = pt.template;
-    fine_level.parent_slots = parents.iter().flat_map(|l| pt.slots_of(l.vertex as usize).to_vec()).collect();
+    fine_level.parent_template = coarse_parent_templates.template;
+    fine_level.parent_neighbourhoods = Some(coarse_parent_templates.neighbourhoods);
     fine_level.parents = parents;
     Ok(())
 }
@@ -438,12 +434,13 @@ mod tests {
         let (mesh, frames) = flat_grid(w, h, 0.5);
         let level = surface_level(&mesh, &frames, 0.5, template).expect("valid");
         let grid = &grid_levels(w as usize, h as usize, 1, template, 3)[0];
+        let (mut a, mut b, mut c, mut d) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for v in interior(w, h, 2) {
-            let got: Vec<Option<u32>> = level.slots_of(v).iter().map(on_vertex).collect();
-            let want: Vec<Option<u32>> = grid.slots_of(v).iter().map(on_vertex).collect();
+            let got: Vec<Option<u32>> = level.slots_of(v, &mut a).iter().map(on_vertex).collect();
+            let want: Vec<Option<u32>> = grid.slots_of(v, &mut b).iter().map(on_vertex).collect();
             assert_eq!(got, want, "slots of vertex {v}");
-            let mut got = level.shifts_of(v).to_vec();
-            let mut want = grid.shifts_of(v).to_vec();
+            let mut got = level.shifts_of(v, &mut c).to_vec();
+            let mut want = grid.shifts_of(v, &mut d).to_vec();
             got.sort_by_key(|s| s.0);
             want.sort_by_key(|s| s.0);
             assert_eq!(got.len(), want.len(), "shifts of vertex {v}");
@@ -453,7 +450,7 @@ mod tests {
             }
         }
         // Past the mesh's edge the surface has the default texton.
-        assert_eq!(level.slots_of(0)[0], Slot::DEFAULT);
+        assert_eq!(level.slots_of(0, &mut a)[0], Slot::DEFAULT);
     }
 
     #[test]
@@ -461,7 +458,7 @@ mod tests {
         // Texel 0.75 of a unit grid: pixel (1, 0) of vertex (2, 2) is at x = 2.75, y = 2.
         let (mesh, frames) = flat_grid(6, 6, 1.0);
         let level = surface_level(&mesh, &frames, 0.75, 3).expect("valid");
-        let slot = level.slots_of(14)[5];
+        let slot = level.slots_of(14, &mut Vec::new())[5];
         let mut pairs: Vec<(u32, f32)> = slot.vertices.into_iter().zip(slot.weights).collect();
         pairs.retain(|p| p.1 > 1e-6);
         pairs.sort_by_key(|p| p.0);
@@ -488,7 +485,7 @@ mod tests {
         let many = surface_level(&mesh, &frames, texel, 5).expect("valid");
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool");
         let one = pool.install(|| surface_level(&mesh, &frames, texel, 5)).expect("valid");
-        assert_eq!((many.slots, many.shift_start, many.shifts), (one.slots, one.shift_start, one.shifts));
+        assert_eq!(many, one);
     }
 
     #[test]
@@ -497,11 +494,15 @@ mod tests {
         let p = mesh.positions();
         let template = 5;
         let level = surface_level(&mesh, &frames, texel, template).expect("valid");
-        assert_eq!(level.slots.len(), mesh.vertex_count() * template * template);
+        let Neighbourhoods::Mesh { slots: all_slots, .. } = &level.neighbourhoods else {
+            panic!("a mesh level")
+        };
+        assert_eq!(all_slots.len(), mesh.vertex_count() * template * template);
+        let (mut scratch, mut shift_scratch) = (Vec::new(), Vec::new());
         let limit = (template / 2) as f32 + SQUARE_TOLERANCE;
         let (mut default, mut folded, mut shifted) = (0, 0, 0);
         for v in 0..mesh.vertex_count() {
-            for s in level.slots_of(v) {
+            for s in level.slots_of(v, &mut scratch) {
                 if s.vertices[0] == OUTSIDE {
                     default += 1;
                     continue;
@@ -509,11 +510,11 @@ mod tests {
                 assert!(s.weights.iter().all(|&w| w >= -1e-4), "{s:?}");
                 assert!((s.weights.iter().sum::<f32>() - 1.0).abs() < 1e-4, "{s:?}");
             }
-            let centre = level.slots_of(v)[template * template / 2];
+            let centre = level.slots_of(v, &mut scratch)[template * template / 2];
             let on_v: f32 =
                 (0..3).filter(|&k| centre.vertices[k] == v as u32).map(|k| centre.weights[k]).sum();
             assert!(on_v >= 0.99, "centre of {v}: {centre:?}");
-            let shifts = level.shifts_of(v);
+            let shifts = level.shifts_of(v, &mut shift_scratch);
             assert_eq!(shifts[0], (v as u32, [0.0, 0.0]));
             assert!(shifts.iter().all(|(_, o)| o[0].abs() <= limit && o[1].abs() <= limit));
             // Unfolding lays paths on the surface flat, so nothing should land much nearer
@@ -528,7 +529,7 @@ mod tests {
         // flattened onto the wrong side of its edge folds nearly 90%.
         assert!(folded * 50 < shifted, "{folded} of {shifted} shifts folded back");
         // The patches cover the templates almost everywhere on a closed-ish mesh.
-        assert!(default * 20 < level.slots.len(), "{default} default slots");
+        assert!(default * 20 < all_slots.len(), "{default} default slots");
     }
 
     #[test]
@@ -538,7 +539,7 @@ mod tests {
         let (coarse, coarse_frames) = flat_grid(w.div_ceil(2), h.div_ceil(2), 2.0);
         let mut level = surface_level(&fine, &fine_frames, 1.0, 5).expect("valid");
         let coarse_templates = surface_level(&coarse, &coarse_frames, 2.0, 3).expect("valid");
-        link_levels(&fine, &fine_frames, &mut level, &coarse, &coarse_frames, &coarse_templates, 1.0)
+        link_levels(&fine, &fine_frames, &mut level, &coarse, &coarse_frames, coarse_templates, 1.0)
             .expect("valid");
         let grid = &grid_levels(w as usize, h as usize, 2, 5, 3)[0];
         assert_eq!(level.parent_template, 3);
@@ -549,9 +550,10 @@ mod tests {
             assert!((got.offset[1] - want.offset[1]).abs() < 1e-5, "{got:?} vs {want:?}");
         }
         // Parent templates are the coarse vertices' own (interior ones match the grid's).
+        let (mut a, mut b) = (Vec::new(), Vec::new());
         for v in interior(w, h, 3) {
-            let got: Vec<Option<u32>> = level.parent_slots_of(v).iter().map(on_vertex).collect();
-            let want: Vec<Option<u32>> = grid.parent_slots_of(v).iter().map(on_vertex).collect();
+            let got: Vec<Option<u32>> = level.parent_slots_of(v, &mut a).iter().map(on_vertex).collect();
+            let want: Vec<Option<u32>> = grid.parent_slots_of(v, &mut b).iter().map(on_vertex).collect();
             assert_eq!(got, want, "parent slots of {v}");
         }
     }
@@ -565,6 +567,6 @@ mod tests {
         assert!(surface_level(&mesh, &other_frames, 1.0, 3).is_err());
         let mut level = surface_level(&mesh, &frames, 1.0, 3).expect("valid");
         let coarse = surface_level(&other, &other_frames, 2.0, 3).expect("valid");
-        assert!(link_levels(&mesh, &frames, &mut level, &other, &frames, &coarse, 1.0).is_err());
+        assert!(link_levels(&mesh, &frames, &mut level, &other, &frames, coarse, 1.0).is_err());
     }
 }

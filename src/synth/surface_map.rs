@@ -16,7 +16,7 @@ use crate::mesh::remesh::{edge_length_stats, remesh, EdgeLengthStats, RemeshPara
 use crate::mesh::Mesh;
 use crate::progress::Progress;
 use crate::{Error, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// How large the sample appears on the surface.
@@ -44,9 +44,19 @@ impl Density {
             }
         };
         if !(texel.is_finite() && texel > 0.0) {
-            return Err(Error::invalid(format!("{self:?} gives no usable texel size")));
+            return Err(Error::invalid(format!("{self} gives no usable texel size")));
         }
         Ok(texel)
+    }
+}
+
+impl std::fmt::Display for Density {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match *self {
+            Density::Scale(s) => write!(f, "a scale of {s} texels per model unit"),
+            Density::TexelsAcross(n) => write!(f, "{n} texels across the mesh"),
+            Density::Vertices(n) => write!(f, "{n} vertices"),
+        }
     }
 }
 
@@ -118,7 +128,7 @@ pub fn build_pyramid(
             &mut targets[l],
             &coarse.mesh,
             &coarse.frames,
-            &coarse_templates,
+            coarse_templates,
             fine.texel,
         )?;
     }
@@ -136,10 +146,19 @@ pub fn synthesize_surface(
     synthesize(&pyramid.targets, sample, params, progress)
 }
 
+/// The first header comment of a surface map.
+pub const SURFACE_COMMENT: &str = "btfsynth surface";
+/// Header key of the analysis directory, relative to the surface map's own directory.
+pub const ANALYSIS_KEY: &str = "analysis";
+/// Header key of the analysis directory's absolute path (used if the relative one fails).
+pub const ANALYSIS_ABSOLUTE_KEY: &str = "analysis-absolute";
+/// Header key of the analysed sample's fingerprint (see [`crate::analysis::store::fingerprint`]).
+pub const ANALYSIS_FINGERPRINT_KEY: &str = "analysis-fingerprint";
+
 /// Writes the finest level with its map as a binary PLY: position, normal, frame direction
 /// s (`sx sy sz`), `texton`, `u`, `v` (sample texels); the header comments record the
-/// analysis, the mesh, the texel size and `params` (which must hold no timings: equal
-/// inputs give equal bytes).
+/// analysis (relative to the PLY, absolute, and its fingerprint), the mesh, the texel size
+/// and `params` (which must hold no timings: equal inputs give equal bytes).
 pub fn write_surface_ply(
     path: &Path,
     level: &MeshLevel,
@@ -147,13 +166,25 @@ pub fn write_surface_ply(
     (analysis, mesh): (&Path, &Path),
     params: &serde_json::Value,
 ) -> Result<()> {
-    let comments = [
-        "btfsynth surface".to_string(),
-        format!("analysis {}", analysis.display()),
+    let (relative, absolute) = analysis_paths(analysis, path);
+    let mut comments = vec![SURFACE_COMMENT.to_string(), format!("{ANALYSIS_KEY} {}", relative.display())];
+    if let Some(absolute) = absolute {
+        comments.push(format!("{ANALYSIS_ABSOLUTE_KEY} {}", absolute.display()));
+    }
+    if let Ok(manifest) = crate::analysis::store::read_manifest(analysis) {
+        comments.push(format!("{ANALYSIS_FINGERPRINT_KEY} {}", manifest.source.fingerprint));
+    }
+    comments.extend([
         format!("mesh {}", mesh.display()),
+        format!(
+            "mesh_absolute {}",
+            std::path::absolute(mesh).unwrap_or_else(|_| mesh.to_path_buf()).display()
+        ),
         format!("texel {}", level.texel),
         format!("params {params}"),
-    ];
+    ]);
+    // A path holding a line break cannot go into a header; the map then names none.
+    comments.retain(|c| !c.contains(['\n', '\r']));
     let component = |c: usize| level.frames.s.iter().map(|s| s[c]).collect::<Vec<f32>>();
     let (sx, sy, sz) = (component(0), component(1), component(2));
     let texton: Vec<u32> = state.labels.iter().map(|&l| l as u32).collect();
@@ -171,6 +202,22 @@ pub fn write_surface_ply(
     ply::write(path, &level.mesh, &properties, &comments)
 }
 
+/// The analysis directory relative to the directory `ply` is written into (so the pair can
+/// be moved together), and its absolute path (so the map can be moved alone). Falls back to
+/// the path as given where the directories cannot be resolved.
+fn analysis_paths(analysis: &Path, ply: &Path) -> (PathBuf, Option<PathBuf>) {
+    let absolute = std::fs::canonicalize(analysis).ok();
+    let ply_dir = match ply.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let relative = match (&absolute, std::fs::canonicalize(ply_dir)) {
+        (Some(a), Ok(d)) => crate::fsutil::relative_path(a, &d),
+        _ => analysis.to_path_buf(),
+    };
+    (relative, absolute)
+}
+
 /// A surface map read back from a PLY written by [`write_surface_ply`].
 pub struct SurfaceMap {
     pub mesh: Mesh,
@@ -182,89 +229,145 @@ pub struct SurfaceMap {
     pub comments: Vec<String>,
 }
 
+impl SurfaceMap {
+    /// The value of the header comment `KEY value`, if there is one.
+    pub fn comment(&self, key: &str) -> Option<&str> {
+        self.comments.iter().find_map(|c| c.strip_prefix(key)?.strip_prefix(' ')).map(str::trim)
+    }
+
+    /// The analysis this map was synthesized from, for a map read from `ply`: the header's
+    /// `analysis` path relative to the map's directory, else its absolute path, else the
+    /// `analysis` path as written (maps written before both were recorded named it relative
+    /// to the working directory) — the first that holds an `analysis.json`.
+    pub fn find_analysis(&self, ply: &Path) -> Option<PathBuf> {
+        let written = self.comment(ANALYSIS_KEY).map(PathBuf::from);
+        let beside = written.as_ref().filter(|w| w.is_relative()).map(|w| match ply.parent() {
+            Some(dir) => dir.join(w),
+            None => w.clone(),
+        });
+        let absolute = self.comment(ANALYSIS_ABSOLUTE_KEY).map(PathBuf::from);
+        [beside, absolute, written]
+            .into_iter()
+            .flatten()
+            .find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
+    }
+}
+
 /// Reads a surface map: the vertex properties by name, faces as triangles.
 pub fn read_surface_ply(path: &Path) -> Result<SurfaceMap> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse_surface_ply(&bytes, path)
+}
+
+/// Vertex properties a surface map must have, all 4-byte scalars (`texton` an integer,
+/// the others `float`).
+const SURFACE_PROPERTIES: [&str; 9] = ["x", "y", "z", "sx", "sy", "sz", "texton", "u", "v"];
+
+/// Sample coordinates beyond this many texels are damage, not a sample (and would
+/// overflow the renderers' texel arithmetic).
+const MAX_COORDINATE: f32 = (1 << 24) as f32;
+
+/// Parses the bytes of a surface map read from `path` (named in errors). Every count is
+/// checked against the bytes present before anything is allocated for it.
+pub fn parse_surface_ply(bytes: &[u8], path: &Path) -> Result<SurfaceMap> {
+    use crate::mesh::ply::{parse_header, Encoding, Property, Scalar};
     let bad = |m: &str| Error::format(path, format!("not a btfsynth surface map: {m}"));
-    let end = bytes.windows(11).position(|w| w == b"end_header\n").ok_or_else(|| bad("no PLY header"))?;
-    let header = String::from_utf8_lossy(&bytes[..end]).into_owned();
-    let comments: Vec<String> =
-        header.lines().filter_map(|l| l.strip_prefix("comment ")).map(str::to_string).collect();
-    if !comments.iter().any(|c| c == "btfsynth surface") || !header.contains("binary_little_endian") {
+    let header = parse_header(bytes).map_err(|m| bad(&m))?;
+    if !header.comments.iter().any(|c| c == SURFACE_COMMENT)
+        || header.encoding != Encoding::BinaryLittleEndian
+    {
         return Err(bad("no 'comment btfsynth surface' in a binary little-endian header"));
     }
-    let count = |name: &str| {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {name} ")))
-            .and_then(|n| n.trim().parse::<usize>().ok())
+    let [vertex, face] = &header.elements[..] else {
+        return Err(bad("expected a vertex and a face element"));
     };
-    let (vertices, faces) =
-        (count("vertex").ok_or_else(|| bad("no vertices"))?, count("face").ok_or_else(|| bad("no faces"))?);
-    let names: Vec<&str> = header
-        .lines()
-        .skip_while(|l| !l.starts_with("element vertex"))
-        .skip(1)
-        .take_while(|l| l.starts_with("property") && !l.contains(" list "))
-        .filter_map(|l| l.split_whitespace().nth(2))
-        .collect();
-    let stride = 4 * names.len();
-    let body = &bytes[end + 11..];
-    if body.len() < vertices * stride {
-        return Err(bad("truncated vertex data"));
+    let triangle_list =
+        Property::List { name: "vertex_indices".into(), count: Scalar::U8, item: Scalar::I32 };
+    if vertex.name != "vertex" || face.name != "face" || face.properties != [triangle_list] {
+        return Err(bad("expected vertices, then faces as 'list uchar int vertex_indices'"));
     }
-    let column = |name: &str| -> Result<Vec<[u8; 4]>> {
-        let k = names
-            .iter()
-            .position(|n| *n == name)
-            .ok_or_else(|| bad(&format!("no vertex property {name}")))?;
-        Ok((0..vertices)
-            .map(|v| {
-                let o = v * stride + 4 * k;
-                [body[o], body[o + 1], body[o + 2], body[o + 3]]
-            })
-            .collect())
+    let mut names = Vec::with_capacity(vertex.properties.len());
+    for p in &vertex.properties {
+        match p {
+            Property::Scalar { name, ty }
+                if *ty == Scalar::F32 || (name == "texton" && ty.is_integer() && ty.size() == 4) =>
+            {
+                names.push(name.as_str())
+            }
+            _ => {
+                return Err(bad(&format!(
+                    "vertex property '{}' is not a float (or a 4-byte integer texton)",
+                    p.name()
+                )))
+            }
+        }
+    }
+    if let Some(missing) = SURFACE_PROPERTIES.iter().find(|n| !names.contains(n)) {
+        return Err(bad(&format!("no vertex property {missing}")));
+    }
+    let body = &bytes[header.body_offset..];
+    let stride = 4 * names.len();
+    let vertex_bytes = vertex.count.checked_mul(stride).filter(|&n| n <= body.len());
+    let vertex_bytes =
+        vertex_bytes.ok_or_else(|| bad("the header declares more vertices than the file holds"))?;
+    let faces = &body[vertex_bytes..];
+    if face.count.checked_mul(13).is_none_or(|n| n > faces.len()) {
+        return Err(bad("the header declares more faces than the file holds"));
+    }
+    let column = |name: &str| -> Vec<[u8; 4]> {
+        let k = names.iter().position(|n| *n == name).unwrap_or(0);
+        body[..vertex_bytes]
+            .chunks_exact(stride)
+            .map(|row| [row[4 * k], row[4 * k + 1], row[4 * k + 2], row[4 * k + 3]])
+            .collect()
     };
-    let float =
-        |name: &str| -> Result<Vec<f32>> { Ok(column(name)?.into_iter().map(f32::from_le_bytes).collect()) };
-    let (x, y, z) = (float("x")?, float("y")?, float("z")?);
-    let (sx, sy, sz) = (float("sx")?, float("sy")?, float("sz")?);
+    let float = |name: &str| -> Vec<f32> { column(name).into_iter().map(f32::from_le_bytes).collect() };
+    let (x, y, z) = (float("x"), float("y"), float("z"));
+    let (sx, sy, sz) = (float("sx"), float("sy"), float("sz"));
     let labels: Vec<u16> =
-        column("texton")?.into_iter().map(|b| u32::from_le_bytes(b).min(u16::MAX as u32) as u16).collect();
-    let (u, v) = (float("u")?, float("v")?);
-    let triangles =
-        read_triangles(&body[vertices * stride..], faces).ok_or_else(|| bad("faces are not triangles"))?;
-    let positions = (0..vertices).map(|i| glam::Vec3::new(x[i], y[i], z[i])).collect();
-    let mesh = Mesh::new(positions, triangles)?.with_normals();
-    let directions: Vec<glam::Vec3> = (0..vertices).map(|i| glam::Vec3::new(sx[i], sy[i], sz[i])).collect();
-    let frames = Frames::from_directions(mesh.normals().unwrap_or(&[]), &directions);
-    if mesh.vertex_count() != vertices {
+        column("texton").into_iter().map(|b| u32::from_le_bytes(b).min(u16::MAX as u32) as u16).collect();
+    let (u, v) = (float("u"), float("v"));
+    if let Some(i) = (0..u.len())
+        .find(|&i| !(0.0..MAX_COORDINATE).contains(&u[i]) || !(0.0..MAX_COORDINATE).contains(&v[i]))
+    {
+        return Err(bad(&format!("vertex {i} has the sample coordinate ({}, {})", u[i], v[i])));
+    }
+    let triangles = read_triangles(faces, face.count).ok_or_else(|| bad("faces are not triangles"))?;
+    let positions = (0..vertex.count).map(|i| glam::Vec3::new(x[i], y[i], z[i])).collect();
+    let mesh = Mesh::new(positions, triangles).map_err(|e| bad(&e.to_string()))?.with_normals();
+    if mesh.vertex_count() != vertex.count {
         return Err(bad("the mesh changed on reading (non-manifold or degenerate faces)"));
     }
+    let directions: Vec<glam::Vec3> =
+        (0..vertex.count).map(|i| glam::Vec3::new(sx[i], sy[i], sz[i])).collect();
+    let frames = Frames::from_directions(mesh.normals().unwrap_or(&[]), &directions);
+    let comments = header.comments;
     let texel = comments
         .iter()
         .find_map(|c| c.strip_prefix("texel "))
         .and_then(|t| t.trim().parse::<f32>().ok())
-        .ok_or_else(|| bad("no texel comment"))?;
+        .filter(|t| t.is_finite() && *t > 0.0)
+        .ok_or_else(|| bad("no positive 'texel' comment"))?;
     let uv = u.iter().zip(&v).map(|(&a, &b)| [a.round() as i32, b.round() as i32]).collect();
     Ok(SurfaceMap { mesh, frames, state: State { labels, uv }, texel, comments })
 }
 
-/// `faces` triangles written as `uchar 3, int a, int b, int c`.
+/// `faces` triangles written as `uchar 3, int a, int b, int c`; negative indices are left
+/// to the mesh validation as out of range.
 fn read_triangles(body: &[u8], faces: usize) -> Option<Vec<[u32; 3]>> {
-    (0..faces)
-        .map(|f| {
-            let o = f * 13;
-            let record = body.get(o..o + 13)?;
+    body.chunks_exact(13)
+        .take(faces)
+        .map(|record| {
             let index = |k: usize| {
-                u32::from_le_bytes([
+                i32::from_le_bytes([
                     record[1 + 4 * k],
                     record[2 + 4 * k],
                     record[3 + 4 * k],
                     record[4 + 4 * k],
                 ])
             };
-            (record[0] == 3).then(|| [index(0), index(1), index(2)])
+            let corners = [index(0), index(1), index(2)];
+            (record[0] == 3).then(|| corners.map(|i| u32::try_from(i).unwrap_or(u32::MAX)))
         })
         .collect()
 }

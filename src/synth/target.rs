@@ -35,51 +35,136 @@ pub struct ParentLink {
     pub offset: [f32; 2],
 }
 
-/// One level of the target: a square template of `template × template` slots per vertex,
-/// the patch vertices with their offsets, and (below the coarsest level) parent links and
-/// the parent neighbourhood's slots.
-#[derive(Clone, Debug, Default)]
+/// A patch vertex and its offset from the centre vertex, in texels.
+pub type Shift = (u32, [f32; 2]);
+
+/// The neighbourhoods of a level's vertices: per vertex a square template of slots (row-major;
+/// pixel (i, j) sits at offset (i − r, j − r) texels from the vertex) and its patch vertices
+/// with their offsets, for forward shifts.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Neighbourhoods {
+    /// A regular `width × height` grid (plane mode): computed on demand, since they are the
+    /// grid itself around each vertex. Template pixels past the grid's edge are not compared.
+    Grid { width: usize, height: usize, template: usize },
+    /// A mesh: resampled from flattened patches and stored.
+    Mesh {
+        template: usize,
+        /// `vertices × template²` slots.
+        slots: Vec<Slot>,
+        /// CSR: the patch vertices of v are `shifts[shift_start[v]..shift_start[v + 1]]`.
+        shift_start: Vec<u32>,
+        shifts: Vec<Shift>,
+    },
+}
+
+impl Neighbourhoods {
+    /// Side of the templates.
+    pub fn template(&self) -> usize {
+        match self {
+            Neighbourhoods::Grid { template, .. } | Neighbourhoods::Mesh { template, .. } => *template,
+        }
+    }
+
+    /// The template slots of vertex v (computed into `scratch` on a grid).
+    pub fn slots<'a>(&'a self, v: usize, scratch: &'a mut Vec<Slot>) -> &'a [Slot] {
+        match self {
+            Neighbourhoods::Mesh { template, slots, .. } => {
+                let n = template * template;
+                &slots[v * n..(v + 1) * n]
+            }
+            &Neighbourhoods::Grid { width, height, template } => {
+                scratch.clear();
+                scratch
+                    .extend(grid_window(v, width, height, template).map(|p| p.map_or(Slot::NONE, Slot::at)));
+                scratch
+            }
+        }
+    }
+
+    /// The patch vertices of v with their offsets (computed into `scratch` on a grid).
+    pub fn shifts<'a>(&'a self, v: usize, scratch: &'a mut Vec<Shift>) -> &'a [Shift] {
+        match self {
+            Neighbourhoods::Mesh { shift_start, shifts, .. } => {
+                &shifts[shift_start[v] as usize..shift_start[v + 1] as usize]
+            }
+            &Neighbourhoods::Grid { width, height, template } => {
+                let r = (template / 2) as f32;
+                scratch.clear();
+                scratch.extend(grid_window(v, width, height, template).enumerate().filter_map(|(i, p)| {
+                    let offset = [(i % template) as f32 - r, (i / template) as f32 - r];
+                    p.map(|p| (p, offset))
+                }));
+                scratch
+            }
+        }
+    }
+}
+
+/// The grid vertices of v's `template × template` window, row-major; `None` past the edge.
+fn grid_window(v: usize, width: usize, height: usize, template: usize) -> impl Iterator<Item = Option<u32>> {
+    let r = (template / 2) as i64;
+    let (x, y) = ((v % width) as i64, (v / width) as i64);
+    (-r..=r).flat_map(move |dy| {
+        (-r..=r).map(move |dx| {
+            let (sx, sy) = (x + dx, y + dy);
+            ((0..width as i64).contains(&sx) && (0..height as i64).contains(&sy))
+                .then(|| (sy * width as i64 + sx) as u32)
+        })
+    })
+}
+
+/// One level of the target: its vertices' neighbourhoods and, below the coarsest level,
+/// their links to the coarser level and the coarser level's templates for two-level
+/// neighbourhoods.
+#[derive(Clone, Debug, PartialEq)]
 pub struct TargetLevel {
     pub vertices: usize,
     /// Side of the template (odd).
     pub template: usize,
-    /// `vertices × template²` slots, row-major within a template; pixel (i, j) sits at offset
-    /// (i − r, j − r) texels from the vertex.
-    pub slots: Vec<Slot>,
-    /// CSR: the patch vertices of vertex v are `shifts[shift_start[v]..shift_start[v + 1]]`,
-    /// each with its offset from v in texels (v itself included at offset 0).
-    pub shift_start: Vec<u32>,
-    pub shifts: Vec<(u32, [f32; 2])>,
+    pub neighbourhoods: Neighbourhoods,
     /// Per vertex, where it sits on the next coarser level (empty on the coarsest level).
     pub parents: Vec<ParentLink>,
-    /// Side of the parent template, and `vertices × parent_template²` slots over coarser
-    /// vertices around each vertex's parent point.
+    /// Side of the parent template.
     pub parent_template: usize,
-    pub parent_slots: Vec<Slot>,
+    /// Templates of the coarser level's vertices, `parent_template` wide: a vertex's parent
+    /// neighbourhood is its parent vertex's.
+    pub parent_neighbourhoods: Option<Neighbourhoods>,
 }
 
 impl TargetLevel {
+    /// A level with no links to a coarser one.
+    pub fn new(vertices: usize, neighbourhoods: Neighbourhoods) -> Self {
+        TargetLevel {
+            vertices,
+            template: neighbourhoods.template(),
+            neighbourhoods,
+            parents: Vec::new(),
+            parent_template: 0,
+            parent_neighbourhoods: None,
+        }
+    }
+
     /// The template slots of vertex v.
-    pub fn slots_of(&self, v: usize) -> &[Slot] {
-        let n = self.template * self.template;
-        &self.slots[v * n..(v + 1) * n]
+    pub fn slots_of<'a>(&'a self, v: usize, scratch: &'a mut Vec<Slot>) -> &'a [Slot] {
+        self.neighbourhoods.slots(v, scratch)
     }
 
     /// The parent-neighbourhood slots of vertex v (empty on the coarsest level).
-    pub fn parent_slots_of(&self, v: usize) -> &[Slot] {
-        let n = self.parent_template * self.parent_template;
-        self.parent_slots.get(v * n..(v + 1) * n).unwrap_or(&[])
+    pub fn parent_slots_of<'a>(&'a self, v: usize, scratch: &'a mut Vec<Slot>) -> &'a [Slot] {
+        match (&self.parent_neighbourhoods, self.parents.get(v)) {
+            (Some(n), Some(link)) => n.slots(link.vertex as usize, scratch),
+            _ => &[],
+        }
     }
 
     /// The patch vertices of v with their offsets.
-    pub fn shifts_of(&self, v: usize) -> &[(u32, [f32; 2])] {
-        &self.shifts[self.shift_start[v] as usize..self.shift_start[v + 1] as usize]
+    pub fn shifts_of<'a>(&'a self, v: usize, scratch: &'a mut Vec<Shift>) -> &'a [Shift] {
+        self.neighbourhoods.shifts(v, scratch)
     }
 }
 
 /// The levels of a regular `width × height` grid (plane mode): each coarser grid halves
-/// both sides; the template of a vertex is the grid itself around it, and template pixels
-/// past the grid's edge are not compared (as in 2D texture synthesis).
+/// both sides (rounding up); a vertex's parent is the coarse vertex under it.
 pub fn grid_levels(
     width: usize,
     height: usize,
@@ -94,24 +179,7 @@ pub fn grid_levels(
     (0..levels)
         .map(|l| {
             let (w, h) = sizes[l];
-            let mut level = TargetLevel { vertices: w * h, template, ..TargetLevel::default() };
-            level.slots = grid_slots(w, h, template);
-            let r = (template / 2) as i64;
-            level.shift_start.push(0);
-            for y in 0..h as i64 {
-                for x in 0..w as i64 {
-                    for dy in -r..=r {
-                        for dx in -r..=r {
-                            if (0..w as i64).contains(&(x + dx)) && (0..h as i64).contains(&(y + dy)) {
-                                level
-                                    .shifts
-                                    .push((((y + dy) * w as i64 + x + dx) as u32, [dx as f32, dy as f32]));
-                            }
-                        }
-                    }
-                    level.shift_start.push(level.shifts.len() as u32);
-                }
-            }
+            let mut level = TargetLevel::new(w * h, Neighbourhoods::Grid { width: w, height: h, template });
             if let Some(&(pw, ph)) = sizes.get(l + 1) {
                 level.parents = (0..w * h)
                     .map(|v| {
@@ -121,39 +189,12 @@ pub fn grid_levels(
                     })
                     .collect();
                 level.parent_template = parent_template;
-                let parent_grid = grid_slots(pw, ph, parent_template);
-                let n = parent_template * parent_template;
-                level.parent_slots = (0..w * h)
-                    .flat_map(|v| {
-                        let (x, y) = ((v % w / 2).min(pw - 1), (v / w / 2).min(ph - 1));
-                        parent_grid[(y * pw + x) * n..(y * pw + x + 1) * n].to_vec()
-                    })
-                    .collect();
+                level.parent_neighbourhoods =
+                    Some(Neighbourhoods::Grid { width: pw, height: ph, template: parent_template });
             }
             level
         })
         .collect()
-}
-
-/// Template slots of every vertex of a w × h grid.
-fn grid_slots(w: usize, h: usize, template: usize) -> Vec<Slot> {
-    let r = (template / 2) as i64;
-    let mut slots = Vec::with_capacity(w * h * template * template);
-    for y in 0..h {
-        for x in 0..w {
-            for dy in -r..=r {
-                for dx in -r..=r {
-                    let (sx, sy) = (x as i64 + dx, y as i64 + dy);
-                    slots.push(if (0..w as i64).contains(&sx) && (0..h as i64).contains(&sy) {
-                        Slot::at((sy * w as i64 + sx) as u32)
-                    } else {
-                        Slot::NONE
-                    });
-                }
-            }
-        }
-    }
-    slots
 }
 
 #[cfg(test)]
@@ -164,19 +205,20 @@ mod tests {
     fn grid_templates_shifts_and_parents() {
         let levels = grid_levels(6, 4, 2, 3, 3);
         let l0 = &levels[0];
+        let (mut slots, mut shifts) = (Vec::new(), Vec::new());
         assert_eq!((l0.vertices, levels[1].vertices), (24, 6));
         // Vertex (0, 0): the template's top-left pixels fall off the grid.
-        assert_eq!(l0.slots_of(0)[0], Slot::NONE);
-        assert_eq!(l0.slots_of(0)[4], Slot::at(0));
-        assert_eq!(l0.slots_of(0)[8], Slot::at(7));
+        assert_eq!(l0.slots_of(0, &mut slots)[0], Slot::NONE);
+        assert_eq!(l0.slots_of(0, &mut slots)[4], Slot::at(0));
+        assert_eq!(l0.slots_of(0, &mut slots)[8], Slot::at(7));
         // Vertex (1, 1) sees all 9 grid neighbours, itself at offset 0.
-        assert_eq!(l0.shifts_of(7).len(), 9);
-        assert!(l0.shifts_of(7).contains(&(7, [0.0, 0.0])));
-        assert!(l0.shifts_of(7).contains(&(0, [-1.0, -1.0])));
+        assert_eq!(l0.shifts_of(7, &mut shifts).len(), 9);
+        assert!(l0.shifts_of(7, &mut shifts).contains(&(7, [0.0, 0.0])));
+        assert!(l0.shifts_of(7, &mut shifts).contains(&(0, [-1.0, -1.0])));
         // Vertex (3, 1) inherits from coarse vertex (1, 0) with offset (1, 1).
         assert_eq!(l0.parents[9].vertex, 1);
         assert_eq!(l0.parents[9].offset, [1.0, 1.0]);
-        assert_eq!(l0.parent_slots_of(9)[4], Slot::at(1));
+        assert_eq!(l0.parent_slots_of(9, &mut slots)[4], Slot::at(1));
         assert!(levels[1].parents.is_empty());
     }
 }

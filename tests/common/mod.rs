@@ -6,8 +6,14 @@ use std::process::{Command, Output};
 
 /// Runs the built `btfsynth` binary with `args`.
 pub fn btfsynth(args: &[&str]) -> Output {
+    btfsynth_in(Path::new("."), args)
+}
+
+/// Runs the built `btfsynth` binary with `args` in the working directory `dir`.
+pub fn btfsynth_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_btfsynth"))
         .args(args)
+        .current_dir(dir)
         .env("RUST_LOG", "warn")
         .output()
         .expect("the btfsynth binary runs")
@@ -19,6 +25,18 @@ pub fn assert_one_line_error(out: &Output, needle: &str) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "expected failure, got success; stderr: {stderr}");
     assert_eq!(out.status.code(), Some(1), "stderr: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {stderr}");
+    assert!(lines[0].starts_with("error: "), "{stderr}");
+    assert!(lines[0].contains(needle), "error line should mention {needle:?}: {stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+}
+
+/// Asserts the run was refused as a usage error: exit code 2 and one line on stderr that
+/// mentions `needle`.
+pub fn assert_usage_error(out: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "a usage error exits 2; stderr: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "expected one error line, got: {stderr}");
     assert!(lines[0].starts_with("error: "), "{stderr}");
@@ -52,10 +70,19 @@ pub fn entries(dir: &Path) -> Vec<String> {
 /// Analyses a 48×48 crop of the bundled gravel photograph (32 textons, 2 levels) into
 /// `dir/name`: a small real analysis for synthesis tests.
 pub fn analyze_gravel_crop(dir: &Path, name: &str) -> std::path::PathBuf {
+    analyze_gravel(dir, name, "0,0,48,48")
+}
+
+/// Analyses the rectangle `crop` ("x,y,w,h") of the bundled gravel photograph (32
+/// textons, 2 levels) into `dir/name`.
+pub fn analyze_gravel(dir: &Path, name: &str, crop: &str) -> std::path::PathBuf {
     let out = dir.join(name);
     let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
-    let args = ["-q", "analyze", texture, "--crop", "0,0,48,48", "--textons", "32", "--levels", "2", "-o"];
+    let args = ["-q", "analyze", texture, "--crop", crop, "--textons", "32", "--levels", "2", "-o"];
     let r = btfsynth(&[&args[..], &[out.to_str().unwrap()]].concat());
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     out
 }
+
+/// The bundled 1,839-vertex Stanford bunny.
+pub const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");

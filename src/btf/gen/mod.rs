@@ -20,7 +20,8 @@ use rayon::prelude::*;
 use trace::{HeightField, Hit};
 
 /// The procedural materials `gen` can make.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum MaterialKind {
     /// Rounded stones on a sandy ground, one per cell of a jittered grid.
     Pebbles,
@@ -76,7 +77,8 @@ impl Default for GenParams {
 }
 
 impl GenParams {
-    fn validate(&self) -> Result<()> {
+    /// Checks the size and the samples per pixel; [`generate`] does it first.
+    pub fn validate(&self) -> Result<()> {
         if !(4..=2048).contains(&self.size) {
             return Err(Error::invalid(format!("size {} is outside 4..=2048 pixels", self.size)));
         }

@@ -20,6 +20,30 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
     Ok(soup)
 }
 
+/// Reads every row of every element and hands it to `visit` (the element, the row's index
+/// and one value list per property, scalars as one value): for readers of the properties
+/// [`parse`] discards, such as texture coordinates.
+pub(crate) fn visit_rows(
+    bytes: &[u8],
+    path: &Path,
+    mut visit: impl FnMut(&Element, usize, &[Vec<f64>]) -> Result<(), String>,
+) -> Result<()> {
+    let header = parse_header(bytes).map_err(|m| Error::format(path, m))?;
+    let body = bytes.get(header.body_offset..).unwrap_or_default();
+    let mut values = Values::new(body, header.encoding).map_err(|m| Error::format(path, m))?;
+    check_sizes(&header, body.len()).map_err(|m| Error::format(path, m))?;
+    let mut row = Vec::new();
+    for element in &header.elements {
+        for i in 0..element.count {
+            let at = || format!("PLY {} {i} of {}", element.name, element.count);
+            read_row(element, &mut values, &mut row)
+                .map_err(|m| Error::format(path, format!("{}: {m}", at())))?;
+            visit(element, i, &row).map_err(|m| Error::format(path, format!("{}: {m}", at())))?;
+        }
+    }
+    Ok(())
+}
+
 /// Rejects counts the body cannot hold before anything is allocated for them.
 fn check_sizes(header: &Header, body_len: usize) -> Result<(), String> {
     let needed = header.elements.iter().try_fold(0usize, |sum, e| {
@@ -70,6 +94,8 @@ fn read_element(element: &Element, values: &mut Values, soup: &mut Soup) -> Resu
                 Soup::fan_triangulate(&polygon, &mut soup.triangles);
             }
         }
+        // An element without properties takes no bytes, whatever its count claims.
+        _ if element.properties.is_empty() => {}
         _ => {
             let mut row = Vec::new();
             for i in 0..element.count {

@@ -134,7 +134,7 @@ fn rescale_for_count(he: &Halfedges, length: f32, n: usize) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::test_meshes::{cube, grid, shared};
+    use crate::mesh::test_meshes::{bundled, cube, grid};
     use crate::mesh::{load, topology};
 
     fn assert_same_topology(a: &Mesh, b: &Mesh) {
@@ -210,7 +210,7 @@ mod tests {
 
     #[test]
     fn bunny_to_50k_vertices_is_uniform_and_keeps_its_genus() {
-        let bunny = load(&shared("bunny-1k8.obj")).expect("loads");
+        let bunny = load(&bundled("bunny-1k8.obj")).expect("loads");
         let start = std::time::Instant::now();
         let fine = remesh_to_vertex_count(&bunny, 50_000).expect("remeshes");
         let elapsed = start.elapsed();
@@ -224,7 +224,7 @@ mod tests {
 
     #[test]
     fn teapot_remeshes_with_its_boundaries() {
-        let teapot = load(&shared("teapot.obj")).expect("loads");
+        let teapot = load(&bundled("teapot.obj")).expect("loads");
         let fine = remesh_to_vertex_count(&teapot, 5_000).expect("remeshes");
         assert_same_topology(&teapot, &fine);
         let (before, after) = (topology::summary(&teapot), topology::summary(&fine));

@@ -1,0 +1,129 @@
+//! Stacks whose images are decoded on request.
+//!
+//! A measured BTF file can hold far more than memory: a 400×400 UBO2014 material is
+//! 22,801 images, 22 GB as f16. An [`ImageSource`] knows its size and directions up front
+//! and decodes image `i` when asked, so `info` reads only a header, `convert` streams image
+//! by image, and `--crop` decodes only the crop. [`open`] gives the lazy source of a `.btf`
+//! file or a zip archive; [`Btf`] itself is the in-memory source.
+
+use crate::btf::{Btf, Crop, DirectionPair};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use half::f16;
+use rayon::prelude::*;
+use std::path::Path;
+
+/// A stack that decodes its images on request (linear RGB, `[height][width][3]`).
+pub trait ImageSource: Sync {
+    /// Where the images come from (for messages).
+    fn path(&self) -> &Path;
+    /// Width of every image (after any crop).
+    fn width(&self) -> usize;
+    /// Height of every image (after any crop).
+    fn height(&self) -> usize;
+    /// The (light, view) pair of every image.
+    fn pairs(&self) -> &[DirectionPair];
+    /// Decodes image `i` into `out` (`width × height × 3` values).
+    fn decode_image(&self, i: usize, out: &mut [f16]) -> Result<()>;
+
+    /// Decodes every image into one in-memory stack (after checking that it fits in
+    /// memory). Sources with a faster whole-stack path override this.
+    fn decode_all(&self, progress: &dyn Progress) -> Result<Btf> {
+        let per_image = self.width() * self.height() * 3;
+        ensure_fits_in_memory(self.path(), self.pairs().len(), per_image)?;
+        let mut pixels = vec![f16::ZERO; per_image * self.pairs().len()];
+        progress.start("decoding images", self.pairs().len() as u64);
+        pixels.par_chunks_mut(per_image).enumerate().try_for_each(|(i, out)| {
+            self.decode_image(i, out)?;
+            progress.advance(1);
+            Ok::<(), Error>(())
+        })?;
+        progress.finish();
+        Btf::new(self.width(), self.height(), self.pairs().to_vec(), pixels)
+    }
+}
+
+impl ImageSource for Btf {
+    fn path(&self) -> &Path {
+        Path::new("(in memory)")
+    }
+
+    fn width(&self) -> usize {
+        Btf::width(self)
+    }
+
+    fn height(&self) -> usize {
+        Btf::height(self)
+    }
+
+    fn pairs(&self) -> &[DirectionPair] {
+        Btf::pairs(self)
+    }
+
+    fn decode_image(&self, i: usize, out: &mut [f16]) -> Result<()> {
+        out.copy_from_slice(self.image(i));
+        Ok(())
+    }
+
+    fn decode_all(&self, _progress: &dyn Progress) -> Result<Btf> {
+        Ok(self.clone())
+    }
+}
+
+/// The lazy source of a file that holds a whole stack (a Bonn `.btf` file or a zip of
+/// UBO2003/ATRIUM images), restricted to `crop`; `None` if `path` is not such a file
+/// (a directory, a manifest or one image, which [`crate::btf::load()`] reads).
+pub fn open(path: &Path, crop: Option<Crop>) -> Result<Option<Box<dyn ImageSource>>> {
+    if crate::btf::ubo2014::is_bonn_file(path) {
+        let file = crate::btf::ubo2014::BonnBtf::open(path)?;
+        return Ok(Some(Box::new(file.into_window(crop)?)));
+    }
+    if crate::btf::archive::is_zip(path) {
+        return Ok(Some(Box::new(crate::btf::archive::ZipStack::open(path, crop)?)));
+    }
+    Ok(None)
+}
+
+/// Fails with a message that suggests `--crop` when `images` decoded images of
+/// `per_image` f16 values would not fit in the memory available now (Linux; elsewhere
+/// the check is skipped).
+pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Result<()> {
+    let needed = (images as u128 * per_image as u128 * 2).min(u64::MAX as u128) as u64;
+    // Leave a fifth of the memory for everything else the process and the machine need.
+    let budget = available_memory().map(|a| a / 10 * 8);
+    match budget {
+        Some(budget) if needed > budget => Err(Error::format(
+            path,
+            format!(
+                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget (80% of the memory available); decode a part with --crop x,y,w,h",
+                needed as f64 / (1u64 << 30) as f64,
+                budget as f64 / (1u64 << 30) as f64
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// `MemAvailable` from /proc/meminfo, in bytes.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Checks that `crop` fits a `width × height` sample; the whole sample if `None`.
+pub fn resolve_crop(path: &Path, crop: Option<Crop>, width: usize, height: usize) -> Result<Crop> {
+    let c = crop.unwrap_or(Crop { x: 0, y: 0, width: width as u32, height: height as u32 });
+    let fits = c.x as u64 + c.width as u64 <= width as u64 && c.y as u64 + c.height as u64 <= height as u64;
+    if !fits {
+        return Err(Error::format(
+            path,
+            format!(
+                "crop {},{},{},{} does not fit in the {width}x{height} sample",
+                c.x, c.y, c.width, c.height
+            ),
+        ));
+    }
+    Ok(c)
+}

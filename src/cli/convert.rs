@@ -1,0 +1,157 @@
+//! `btfsynth convert`: any readable stack to a folder stack or a DFMF `.btf` file.
+
+use super::progress::Bars;
+use crate::btf::colour::ColourModel;
+use crate::btf::convert::{open_stack, rotations_of, to_btf, ToBtfOptions};
+use crate::btf::ubo2014::Scalar;
+use crate::btf::{write_images, Crop, ImageFormat};
+use crate::fsutil::check_target;
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+#[command(after_help = "Examples:
+  btfsynth convert wool.zip -o wool/                       # UBO2003 archive to EXR folder
+  btfsynth convert carpet.btf --crop 0,0,64,64 -o carpet/  # decode a crop of a UBO2014 file
+  btfsynth convert pebbles/ -o pebbles.btf --components 32 # folder to DFMF (lossy)")]
+pub struct ConvertArgs {
+    /// The stack: a folder (btf.json or Bonn/UTIA-named images), a btf.json, one image, a
+    /// Bonn .btf file (DFMF, FMF, BDI) or a zip of UBO2003/ATRIUM images.
+    input: PathBuf,
+    /// Output: a folder (btf.json plus one image per pair) or, with --to btf, a .btf file.
+    #[arg(short, long, value_name = "OUT")]
+    output: PathBuf,
+    /// Output kind (default: btf when OUT ends in .btf, else folder).
+    #[arg(long, value_enum)]
+    to: Option<Target>,
+    /// Image format of a folder output.
+    #[arg(long, value_enum, default_value_t = ImageFormat::Exr)]
+    format: ImageFormat,
+    /// Components kept per colour channel in a .btf (more = closer, larger).
+    #[arg(long, default_value_t = 32, value_name = "K")]
+    components: usize,
+    /// Colour model of a .btf: 0 (RGB: the error is what the discarded singular values
+    /// predict) or 11 (log-Y, U/Y, V/Y, as the UBO2014 files; suits measured data without
+    /// pure black).
+    #[arg(long, value_enum, default_value_t = ModelArg::Rgb)]
+    colour_model: ModelArg,
+    /// Scalars of a .btf: half (2 bytes, as the UBO2014 files) or float (4 bytes).
+    #[arg(long, value_enum, default_value_t = Precision::Half)]
+    precision: Precision,
+    /// Write a .btf without the rotation block (signature !DFMF08FC, which btf-extractor
+    /// reads but btflib does not).
+    #[arg(long)]
+    no_rotation_block: bool,
+    /// Convert only this rectangle of the sample: x,y,w,h in pixels (a .btf input decodes
+    /// only these texels).
+    #[arg(long, value_name = "X,Y,W,H")]
+    crop: Option<Crop>,
+    /// Seed of the randomized SVD (large stacks).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Replace the output if it exists.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Target {
+    /// A folder: btf.json plus one EXR or PNG per image.
+    Folder,
+    /// A Bonn DFMF .btf file (lossy: a truncated SVD per channel).
+    Btf,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ModelArg {
+    /// RGB, factorized as is.
+    #[value(name = "0", alias = "rgb")]
+    Rgb,
+    /// log-Y, U/Y, V/Y: luminance in log space, chromaticity as ratios.
+    #[value(name = "11", alias = "log-yuv")]
+    LogYuv,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Precision {
+    Half,
+    Float,
+}
+
+pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
+    check_target(&args.output, args.force)?;
+    let target = args.to.unwrap_or(match has_btf_extension(&args.output) {
+        true => Target::Btf,
+        false => Target::Folder,
+    });
+    let started = Instant::now();
+    let stack = open_stack(&args.input, args.crop, bars)?;
+    match target {
+        Target::Folder => {
+            let source = serde_json::json!({
+                "converted_from": args.input.display().to_string(),
+                "crop": args.crop.map(|c| [c.x, c.y, c.width, c.height]),
+            });
+            let written =
+                write_images(stack.as_ref(), &args.output, args.format, Some(source), args.force, bars)?;
+            eprintln!(
+                "wrote {} images of {}x{} to {} in {:.1} s",
+                stack.pairs().len(),
+                stack.width(),
+                stack.height(),
+                written.display(),
+                started.elapsed().as_secs_f64()
+            );
+        }
+        Target::Btf => {
+            let model = match args.colour_model {
+                ModelArg::LogYuv => ColourModel::LogYUvOverY,
+                ModelArg::Rgb => ColourModel::Rgb,
+            };
+            let options = ToBtfOptions {
+                components: args.components,
+                model,
+                scalar: match args.precision {
+                    Precision::Half => Scalar::F16,
+                    Precision::Float => Scalar::F32,
+                },
+                rotation_block: !args.no_rotation_block,
+                rotations: rotations_of(&args.input)?,
+                seed: args.seed,
+            };
+            let decoded = stack.decode_all(bars)?;
+            drop(stack);
+            let r = to_btf(&decoded, &args.output, &options, bars)?;
+            eprintln!(
+                "wrote {} ({} views × {} lights, {}x{}, {:?} components, colour model {}) in {:.1} s",
+                args.output.display(),
+                r.views,
+                r.lights,
+                r.width,
+                r.height,
+                r.components,
+                model.id(),
+                started.elapsed().as_secs_f64()
+            );
+            eprintln!(
+                "  size      {:.1} MiB ({:.1}% of the images as f16)",
+                r.file_bytes as f64 / (1u64 << 20) as f64,
+                100.0 * r.file_bytes as f64 / (r.images * r.width * r.height * 6).max(1) as f64
+            );
+            eprintln!("  error     {:.3e} relative (RGB, decoding the file as written)", r.relative_error);
+            eprintln!(
+                "  predicted {:.3e}, {:.3e}, {:.3e} per channel (discarded singular values, {} space)",
+                r.predicted_error[0],
+                r.predicted_error[1],
+                r.predicted_error[2],
+                model.name()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn has_btf_extension(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("btf"))
+}

@@ -1,0 +1,252 @@
+//! Image-space quality of a synthesized texture against its sample, on the pictures a user
+//! looks at (sRGB-encoded values in [0, 1]): nearest-patch energy at two scales, the colour
+//! histogram χ² and the luminance-contrast ratio.
+//!
+//! Texton-space figures can look perfect on a broken result (a smear of one texel, a
+//! featureless blur); these cannot, because they compare what is seen.
+
+use serde::Serialize;
+
+/// An RGB picture, row-major, sRGB-encoded values in [0, 1].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Picture {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f32; 3]>,
+}
+
+impl Picture {
+    /// A picture from linear RGB values (clamped, then sRGB-encoded).
+    pub fn from_linear(width: usize, height: usize, linear: impl IntoIterator<Item = [f32; 3]>) -> Self {
+        let rgb = linear.into_iter().map(|p| p.map(encode_srgb)).collect();
+        Picture { width, height, rgb }
+    }
+
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> [f32; 3] {
+        self.rgb[y * self.width + x]
+    }
+
+    /// Half the size, each pixel the mean of a 2×2 block (an odd last row/column is dropped).
+    pub fn half(&self) -> Picture {
+        let (w, h) = (self.width / 2, self.height / 2);
+        let rgb = (0..w * h)
+            .map(|i| {
+                let (x, y) = (2 * (i % w), 2 * (i / w));
+                let block = [self.at(x, y), self.at(x + 1, y), self.at(x, y + 1), self.at(x + 1, y + 1)];
+                [0, 1, 2].map(|c| block.iter().map(|p| p[c]).sum::<f32>() / 4.0)
+            })
+            .collect();
+        Picture { width: w, height: h, rgb }
+    }
+
+    /// Rec. 709 luma of the encoded values.
+    fn luma(&self) -> impl Iterator<Item = f32> + '_ {
+        self.rgb.iter().map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
+    }
+}
+
+/// Linear to sRGB-encoded, clamped to [0, 1].
+pub fn encode_srgb(v: f32) -> f32 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// The image-space measures of one result picture against the sample picture.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PictureQuality {
+    /// Mean over the result's 7×7 patches (every [`PATCH_STRIDE`]th pixel) of the squared
+    /// difference to the nearest 7×7 patch of the sample, per value (sRGB, 0–1). 0 when every
+    /// patch exists in the sample; a copy with seams or smears scores above a coherent one,
+    /// and noise far above.
+    pub patch_energy: f64,
+    /// The same on both pictures halved (7×7 patches of 2×2 means): structure at twice the
+    /// scale, e.g. whole stones.
+    pub patch_energy_coarse: f64,
+    /// ½ Σ (p − q)² / (p + q) between 8×8×8-bin colour histograms: 0 identical, 1 disjoint.
+    pub colour_chi2: f64,
+    /// Standard deviation of the result's luma over the sample's: 1 keeps the sample's
+    /// contrast, below 1 is washed out (blur, collapse onto flat texels).
+    pub contrast: f64,
+}
+
+/// Side of the patches compared.
+pub const PATCH_SIDE: usize = 7;
+/// Result patches are taken every this many pixels in x and y (the sample's at every pixel).
+pub const PATCH_STRIDE: usize = 4;
+
+/// Every measure of `result` against `sample`. `tileable`: the sample wraps, so its patches
+/// may cross its border.
+pub fn picture_quality(result: &Picture, sample: &Picture, tileable: bool) -> PictureQuality {
+    let (result_half, sample_half) = (result.half(), sample.half());
+    PictureQuality {
+        patch_energy: patch_energy(result, sample, PATCH_STRIDE, tileable),
+        patch_energy_coarse: patch_energy(&result_half, &sample_half, PATCH_STRIDE / 2, tileable),
+        colour_chi2: colour_chi2(result, sample),
+        contrast: contrast(result, sample),
+    }
+}
+
+/// Mean nearest-patch squared difference per value (see [`PictureQuality::patch_energy`]).
+/// Exact nearest neighbours: ‖q − s‖² = ‖q‖² + ‖s‖² − 2 q·s with the products as one matrix
+/// product per block of result patches. NaN if either picture is smaller than a patch.
+pub fn patch_energy(result: &Picture, sample: &Picture, stride: usize, tileable: bool) -> f64 {
+    let positions = patch_positions(result, stride.max(1), false);
+    nearest_patch_energy(&patch_matrix(result, &positions), sample, tileable)
+}
+
+/// Mean over the rows of `queries` (7×7×3 patches laid out as [`patch_matrix`] lays them
+/// out) of the squared difference per value to the nearest patch of `sample`. NaN when
+/// there are no queries or the sample is smaller than a patch.
+pub(crate) fn nearest_patch_energy(queries: &ndarray::Array2<f32>, sample: &Picture, tileable: bool) -> f64 {
+    let sample_positions = patch_positions(sample, 1, tileable);
+    if sample_positions.is_empty() || queries.nrows() == 0 {
+        return f64::NAN;
+    }
+    let samples = patch_matrix(sample, &sample_positions);
+    let sample_norms: Vec<f32> = samples.rows().into_iter().map(|r| r.dot(&r)).collect();
+    // The expansion finds the nearest patch; its distance is then summed exactly, since
+    // ‖q‖² + ‖s‖² − 2 q·s cancels badly when the two are close.
+    let total: f64 = queries
+        .axis_chunks_iter(ndarray::Axis(0), 1024)
+        .map(|block| {
+            let products = block.dot(&samples.t());
+            block
+                .rows()
+                .into_iter()
+                .zip(products.rows())
+                .map(|(q, row)| {
+                    let nearest = (0..row.len())
+                        .min_by(|&a, &b| {
+                            (sample_norms[a] - 2.0 * row[a]).total_cmp(&(sample_norms[b] - 2.0 * row[b]))
+                        })
+                        .unwrap_or(0);
+                    q.iter().zip(samples.row(nearest)).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>()
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    total / (queries.nrows() * queries.ncols()) as f64
+}
+
+/// Top-left corners of the patches of `picture`: inside it, or everywhere when it wraps.
+fn patch_positions(picture: &Picture, stride: usize, wraps: bool) -> Vec<(usize, usize)> {
+    let (w, h) = if wraps {
+        (picture.width, picture.height)
+    } else {
+        ((picture.width + 1).saturating_sub(PATCH_SIDE), (picture.height + 1).saturating_sub(PATCH_SIDE))
+    };
+    if picture.width < PATCH_SIDE || picture.height < PATCH_SIDE {
+        return Vec::new();
+    }
+    (0..h).step_by(stride).flat_map(|y| (0..w).step_by(stride).map(move |x| (x, y))).collect()
+}
+
+/// One row per patch: its 7×7×3 values (wrapping around the picture's edges).
+fn patch_matrix(picture: &Picture, positions: &[(usize, usize)]) -> ndarray::Array2<f32> {
+    let dims = PATCH_SIDE * PATCH_SIDE * 3;
+    let mut m = ndarray::Array2::zeros((positions.len(), dims));
+    for (mut row, &(x, y)) in m.rows_mut().into_iter().zip(positions) {
+        for dy in 0..PATCH_SIDE {
+            for dx in 0..PATCH_SIDE {
+                let p = picture.at((x + dx) % picture.width, (y + dy) % picture.height);
+                let o = (dy * PATCH_SIDE + dx) * 3;
+                row[o] = p[0];
+                row[o + 1] = p[1];
+                row[o + 2] = p[2];
+            }
+        }
+    }
+    m
+}
+
+/// χ² between 8×8×8-bin colour histograms.
+pub fn colour_chi2(result: &Picture, sample: &Picture) -> f64 {
+    const BINS: usize = 8;
+    let histogram = |p: &Picture| {
+        let mut h = vec![0.0f64; BINS * BINS * BINS];
+        for c in &p.rgb {
+            let bin = c.map(|v| ((v * BINS as f32) as usize).min(BINS - 1));
+            h[(bin[0] * BINS + bin[1]) * BINS + bin[2]] += 1.0;
+        }
+        let n = p.rgb.len().max(1) as f64;
+        h.iter_mut().for_each(|v| *v /= n);
+        h
+    };
+    let (p, q) = (histogram(result), histogram(sample));
+    0.5 * p.iter().zip(&q).filter(|(a, b)| *a + *b > 0.0).map(|(a, b)| (a - b).powi(2) / (a + b)).sum::<f64>()
+}
+
+/// Luma standard deviation of `result` over that of `sample` (1 for a flat sample).
+pub fn contrast(result: &Picture, sample: &Picture) -> f64 {
+    let std = |p: &Picture| {
+        let n = p.rgb.len().max(1) as f64;
+        let mean = p.luma().map(f64::from).sum::<f64>() / n;
+        (p.luma().map(|l| (l as f64 - mean).powi(2)).sum::<f64>() / n).sqrt()
+    };
+    let s = std(sample);
+    if s == 0.0 {
+        1.0
+    } else {
+        std(result) / s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::seq::SliceRandom;
+    use rand::SeedableRng;
+
+    /// A smooth but structured test picture: blobs of colour.
+    fn blobs(w: usize, h: usize) -> Picture {
+        let rgb = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                [
+                    0.5 + 0.4 * (x * 0.31).sin() * (y * 0.17).cos(),
+                    0.5 + 0.4 * (x * 0.11 + y * 0.23).sin(),
+                    0.5 + 0.3 * ((x - y) * 0.19).cos(),
+                ]
+            })
+            .collect();
+        Picture { width: w, height: h, rgb }
+    }
+
+    fn crop(p: &Picture, x0: usize, y0: usize, w: usize, h: usize) -> Picture {
+        let rgb = (0..w * h).map(|i| p.at(x0 + i % w, y0 + i / w)).collect();
+        Picture { width: w, height: h, rgb }
+    }
+
+    #[test]
+    fn a_crop_of_the_sample_has_zero_patch_energy() {
+        let sample = blobs(40, 36);
+        let part = crop(&sample, 5, 7, 20, 18);
+        assert!(patch_energy(&part, &sample, 1, false) < 1e-9);
+        let q = picture_quality(&sample, &sample, false);
+        assert!(q.patch_energy < 1e-9 && q.colour_chi2 == 0.0 && (q.contrast - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_pixel_shuffled_sample_is_flagged_by_patch_energy_not_by_colour() {
+        let sample = blobs(48, 48);
+        let mut shuffled = sample.clone();
+        shuffled.rgb.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3));
+        let q = picture_quality(&shuffled, &sample, false);
+        assert_eq!(q.colour_chi2, 0.0, "same pixels, same histogram");
+        assert!(q.patch_energy > 0.01, "shuffled patches match nothing: {}", q.patch_energy);
+    }
+
+    #[test]
+    fn a_flat_result_loses_contrast_and_colours() {
+        let sample = blobs(32, 32);
+        let mean = [0, 1, 2].map(|c| sample.rgb.iter().map(|p| p[c]).sum::<f32>() / 1024.0);
+        let flat = Picture { width: 32, height: 32, rgb: vec![mean; 1024] };
+        let q = picture_quality(&flat, &sample, false);
+        assert!(q.contrast < 1e-6 && q.colour_chi2 > 0.5, "{q:?}");
+    }
+}

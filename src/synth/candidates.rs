@@ -1,0 +1,107 @@
+//! Candidate sets (Tong §5.2): k-coherence from the kNN lists at the forward-shifted
+//! coordinates of the patch's vertices, or every pixel (full search).
+
+use super::engine::State;
+use super::sample::SampleLevel;
+
+/// How candidates are formed (Tong §5.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Search {
+    /// The union of the kNN lists (first `k` entries) at the forward-shifted coordinates of
+    /// the patch's vertices.
+    KCoherence { k: usize },
+    /// Every pixel of the sample whose neighbourhood lies inside it (Table 2's full search).
+    Full,
+}
+
+impl Search {
+    /// How many entries of each kNN list the search reads (all of them for a full search,
+    /// where lists only guide placement).
+    pub fn list_length(&self, sample: &SampleLevel) -> usize {
+        match *self {
+            Search::KCoherence { k } => k.min(sample.k),
+            Search::Full => sample.k,
+        }
+    }
+}
+
+/// Every pixel whose `radius` neighbourhood lies inside the sample (all of them when it
+/// tiles), for the full search.
+pub fn full_candidates(sample: &SampleLevel, radius: usize) -> Vec<u32> {
+    (0..(sample.width * sample.height) as u32)
+        .filter(|&p| {
+            sample.is_candidate(
+                (p as usize % sample.width) as i64,
+                (p as usize / sample.width) as i64,
+                radius,
+            )
+        })
+        .collect()
+}
+
+/// Gathers k-coherence candidates, deduplicated by a per-visit stamp.
+pub struct Coherence {
+    stamp: Vec<u32>,
+    /// Per texel, its place in `out` during the visit that stamped it.
+    place: Vec<u32>,
+    visit: u32,
+    pub out: Vec<u32>,
+    /// Per candidate, whether it is some patch vertex's forward shift itself (it continues
+    /// a copy) rather than one of its nearest neighbours (it starts a new one).
+    pub coherent: Vec<bool>,
+}
+
+impl Coherence {
+    pub fn new(sample: &SampleLevel) -> Self {
+        let n = sample.width * sample.height;
+        Coherence {
+            stamp: vec![u32::MAX; n],
+            place: vec![0; n],
+            visit: 0,
+            out: Vec::new(),
+            coherent: Vec::new(),
+        }
+    }
+
+    /// The candidates of a vertex whose patch vertices are `shifts` (with their offsets in
+    /// texels; with `known`, only those synthesized so far count): each one's coordinate
+    /// shifted back by its offset and, where that lands on a candidate texel, the first `k`
+    /// entries of its list. A shift that lands outside is dropped, not clamped: clamping sends
+    /// every such shift to the same edge texel, which then wins by sheer repetition.
+    pub fn gather(
+        &mut self,
+        shifts: &[(u32, [f32; 2])],
+        known: Option<&[bool]>,
+        state: &State,
+        sample: &SampleLevel,
+        (k, radius, two_level): (usize, usize, bool),
+    ) -> &[u32] {
+        self.visit = self.visit.wrapping_add(1);
+        self.out.clear();
+        self.coherent.clear();
+        for &(u, offset) in shifts {
+            if known.is_some_and(|known| !known[u as usize]) {
+                continue;
+            }
+            let [su, sv] = state.uv[u as usize];
+            let x = (su as f32 - offset[0]).round() as i64;
+            let y = (sv as f32 - offset[1]).round() as i64;
+            if !sample.is_candidate(x, y, radius) {
+                continue;
+            }
+            let pixel = sample.candidate_pixel(x, y, radius);
+            for (i, &q) in sample.list(pixel, k, two_level).iter().enumerate() {
+                let q = q as usize;
+                if self.stamp[q] != self.visit {
+                    self.stamp[q] = self.visit;
+                    self.place[q] = self.out.len() as u32;
+                    self.out.push(q as u32);
+                    self.coherent.push(i == 0);
+                } else if i == 0 {
+                    self.coherent[self.place[q] as usize] = true;
+                }
+            }
+        }
+        &self.out
+    }
+}

@@ -1,0 +1,184 @@
+//! Neighbourhood distances: how well the sample neighbourhood around a candidate pixel
+//! matches a vertex's template. One trait, two metrics, chosen once per pass so that the
+//! candidate loop is monomorphised:
+//!
+//! - [`GammaMetric`] (Tong §5.1): template pixels are surface textons, Σ wₐ t(labelₐ), and
+//!   the distance Σ ‖s − t‖² is evaluated through Γ.
+//! - [`AppearanceMetric`] (beyond the paper, after Lefebvre and Hoppe 2006): template pixels
+//!   are the barycentric blend of the vertices' appearance vectors, compared by plain SSD
+//!   with the sample's vectors. Continuous, so neighbourhoods do not tie on quantized labels.
+
+use super::engine::State;
+use super::sample::{AppearanceMap, SampleLevel};
+use super::target::{Slot, OUTSIDE};
+
+/// A neighbourhood distance on one level.
+pub(crate) trait Metric {
+    /// A vertex's template, prepared once so each candidate costs as little as possible.
+    type Query: Default;
+
+    /// Prepares the template `slots` under `state`. With `known`, vertices not synthesized
+    /// yet are left out (their weight goes to the slot's other vertices; a slot with none
+    /// known is not compared).
+    fn prepare(&self, slots: &[Slot], state: &State, known: Option<&[bool]>, query: &mut Self::Query);
+
+    /// Distance to the sample neighbourhood centred at (x, y); may stop early, returning
+    /// anything above `bound`, once it exceeds it.
+    fn cost(&self, query: &Self::Query, x: i64, y: i64, bound: f32) -> f32;
+
+    /// Distance between two single texels of the sample (one template pixel's worth).
+    fn texel_distance(&self, a: [i32; 2], b: [i32; 2]) -> f32;
+}
+
+/// The template slots' vertices and weights with unknown vertices removed: `(slot index,
+/// [(vertex, weight)], count)`; slots outside the patch keep `OUTSIDE` as their vertex.
+fn known_parts<'a>(
+    slots: &'a [Slot],
+    known: Option<&'a [bool]>,
+) -> impl Iterator<Item = (usize, [(u32, f32); 3], usize)> + 'a {
+    slots.iter().enumerate().filter_map(move |(i, slot)| {
+        let mut parts = [(OUTSIDE, 0.0f32); 3];
+        let (mut count, mut total) = (0, 0.0);
+        for (&vertex, &weight) in slot.vertices.iter().zip(&slot.weights) {
+            if weight == 0.0 || (vertex != OUTSIDE && known.is_some_and(|k| !k[vertex as usize])) {
+                continue;
+            }
+            parts[count] = (vertex, weight);
+            count += 1;
+            total += weight;
+        }
+        (count > 0).then(|| {
+            parts[..count].iter_mut().for_each(|p| p.1 /= total);
+            (i, parts, count)
+        })
+    })
+}
+
+/// Tong's distance through Γ.
+pub(crate) struct GammaMetric<'a> {
+    pub sample: &'a SampleLevel,
+    pub template: usize,
+}
+
+/// One template pixel for [`GammaMetric`]: s = Σ wₐ t(textonsₐ) and s·s.
+#[derive(Clone, Copy)]
+pub(crate) struct Term {
+    dx: i64,
+    dy: i64,
+    textons: [u16; 3],
+    weights: [f32; 3],
+    count: usize,
+    ss: f32,
+}
+
+impl Metric for GammaMetric<'_> {
+    type Query = Vec<Term>;
+
+    fn prepare(&self, slots: &[Slot], state: &State, known: Option<&[bool]>, query: &mut Vec<Term>) {
+        let (sample, r) = (self.sample, (self.template / 2) as i64);
+        query.clear();
+        for (i, parts, count) in known_parts(slots, known) {
+            let mut term = Term {
+                dx: (i % self.template) as i64 - r,
+                dy: (i / self.template) as i64 - r,
+                textons: [sample.default_texton(); 3],
+                weights: [0.0; 3],
+                count,
+                ss: 0.0,
+            };
+            for (a, &(vertex, weight)) in parts[..count].iter().enumerate() {
+                term.textons[a] =
+                    if vertex == OUTSIDE { sample.default_texton() } else { state.labels[vertex as usize] };
+                term.weights[a] = weight;
+            }
+            for a in 0..count {
+                for b in 0..count {
+                    term.ss +=
+                        term.weights[a] * term.weights[b] * sample.dot(term.textons[a], term.textons[b]);
+                }
+            }
+            query.push(term);
+        }
+    }
+
+    fn texel_distance(&self, a: [i32; 2], b: [i32; 2]) -> f32 {
+        let s = self.sample;
+        let (ta, tb) = (s.label_at(a[0] as i64, a[1] as i64), s.label_at(b[0] as i64, b[1] as i64));
+        (s.dot(ta, ta) + s.dot(tb, tb) - 2.0 * s.dot(ta, tb)).max(0.0)
+    }
+
+    fn cost(&self, query: &Vec<Term>, x: i64, y: i64, bound: f32) -> f32 {
+        let sample = self.sample;
+        let mut d = 0.0;
+        for term in query {
+            let t = sample.label_at(x + term.dx, y + term.dy);
+            let mut st = 0.0;
+            for a in 0..term.count {
+                st += term.weights[a] * sample.dot(term.textons[a], t);
+            }
+            d += term.ss - 2.0 * st + sample.dot(t, t);
+            if d > bound {
+                break;
+            }
+        }
+        d.max(0.0)
+    }
+}
+
+/// Plain SSD of appearance vectors.
+pub(crate) struct AppearanceMetric<'a> {
+    pub map: &'a AppearanceMap,
+    pub template: usize,
+}
+
+/// A prepared template for [`AppearanceMetric`]: per compared pixel its offset into the
+/// map's values and its vector.
+#[derive(Default)]
+pub(crate) struct Vectors {
+    offsets: Vec<isize>,
+    values: Vec<f32>,
+}
+
+impl Metric for AppearanceMetric<'_> {
+    type Query = Vectors;
+
+    fn prepare(&self, slots: &[Slot], state: &State, known: Option<&[bool]>, query: &mut Vectors) {
+        let (map, r, dims) = (self.map, (self.template / 2) as i64, self.map.dims);
+        query.offsets.clear();
+        query.values.clear();
+        for (i, parts, count) in known_parts(slots, known) {
+            // Outside the patch, Tong's default texton is the mean; vectors are centred, so 0.
+            let start = query.values.len();
+            query.values.resize(start + dims, 0.0);
+            for &(vertex, weight) in &parts[..count] {
+                if vertex == OUTSIDE {
+                    continue;
+                }
+                let [u, v] = state.uv[vertex as usize];
+                for (q, &a) in query.values[start..].iter_mut().zip(map.at(u as i64, v as i64)) {
+                    *q += weight * a;
+                }
+            }
+            query.offsets.push(map.offset((i % self.template) as i64 - r, (i / self.template) as i64 - r));
+        }
+    }
+
+    fn texel_distance(&self, a: [i32; 2], b: [i32; 2]) -> f32 {
+        let (va, vb) = (self.map.at(a[0] as i64, a[1] as i64), self.map.at(b[0] as i64, b[1] as i64));
+        va.iter().zip(vb).map(|(x, y)| (x - y) * (x - y)).sum()
+    }
+
+    fn cost(&self, query: &Vectors, x: i64, y: i64, bound: f32) -> f32 {
+        let (values, dims) = (self.map.values(), self.map.dims);
+        let base = self.map.index(x, y) as isize;
+        let mut d = 0.0;
+        for (&offset, target) in query.offsets.iter().zip(query.values.chunks_exact(dims)) {
+            let o = (base + offset) as usize;
+            d += values[o..o + dims].iter().zip(target).map(|(a, b)| (a - b) * (a - b)).sum::<f32>();
+            if d > bound {
+                break;
+            }
+        }
+        d
+    }
+}

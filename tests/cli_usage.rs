@@ -1,0 +1,132 @@
+//! What a new user meets first: usage errors that say what is missing and exit 2, help
+//! that shows what each command needs, outputs that cannot be written refused before any
+//! work, no Rust `Debug` text, and a README that lists every command.
+
+mod common;
+
+use common::{assert_one_line_error, assert_usage_error, btfsynth, entries, BUNNY};
+
+fn help(command: &str) -> String {
+    let out = btfsynth(&[command, "--help"]);
+    assert!(out.status.success());
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The `Usage:` lines of a help text (the first and its continuations).
+fn usage_lines(help: &str) -> Vec<String> {
+    let mut lines = help.lines().skip_while(|l| !l.starts_with("Usage:"));
+    let first = lines.next().unwrap_or_default().to_string();
+    std::iter::once(first).chain(lines.take_while(|l| l.starts_with("       ")).map(str::to_string)).collect()
+}
+
+#[test]
+fn missing_arguments_are_named_and_usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let r = btfsynth(&["analyze", texture]);
+    assert_usage_error(&r, "the following required arguments were not provided: --output <DIR>");
+    assert_usage_error(&btfsynth(&["gen", "pebbles"]), "--output <DIR>");
+    assert_usage_error(&btfsynth(&["render", "x.ply"]), "--output <DIR>");
+    assert_usage_error(&btfsynth(&["remesh", BUNNY, "-o", "x.ply"]), "--vertices");
+    assert_usage_error(&btfsynth(&["remesh", BUNNY, "--vertices", "3", "-o", "x.ply"]), "at least 4");
+    let r = btfsynth(&["--threads", "0", "info", texture]);
+    assert_usage_error(&r, "--threads");
+    let bare = btfsynth(&[]);
+    assert_eq!(bare.status.code(), Some(2), "no command is a usage error");
+    assert!(String::from_utf8_lossy(&bare.stderr).contains("Usage:"), "and shows the overview");
+    assert!(entries(dir.path()).is_empty());
+}
+
+#[test]
+fn help_shows_what_each_command_needs() {
+    let gen = usage_lines(&help("gen"));
+    assert!(gen[0].contains("-o <DIR> <KIND>") && !gen[0].contains("[KIND]"), "{gen:?}");
+    assert!(gen.iter().any(|l| l.contains("gen --list")), "{gen:?}");
+    let render = usage_lines(&help("render"));
+    assert!(render[0].contains("--output <DIR>") && !render[0].contains("[--output"), "{render:?}");
+    let view = usage_lines(&help("view"));
+    assert!(view.iter().any(|l| l.contains("--headless -o <DIR>")), "{view:?}");
+    let remesh = usage_lines(&help("remesh"));
+    assert!(remesh[0].contains("--vertices") && remesh[0].contains("--edge"), "{remesh:?}");
+    let synth = help("synth");
+    for flag in ["--scale", "--texels-across", "--vertices"] {
+        let line =
+            synth.lines().skip_while(|l| !l.trim_start().starts_with(flag)).take(4).collect::<String>();
+        assert!(line.contains("xclude"), "{flag} says what it excludes: {line}");
+    }
+    let preset =
+        synth.lines().skip_while(|l| !l.trim_start().starts_with("--preset")).take(3).collect::<String>();
+    assert!(preset.contains("tong2002 ("), "--preset lists its values: {preset}");
+}
+
+#[test]
+fn an_output_that_cannot_be_written_is_refused_before_any_work() {
+    // The inputs do not exist either: the output is checked first, so that a long run never
+    // ends in a failed write, and the message never shows a temporary name.
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing");
+    let m = missing.to_str().unwrap();
+    let out = "/proc/btfsynth-out";
+    for args in [
+        vec!["analyze", m, "-o", out],
+        vec!["gen", "pebbles", "-o", out],
+        vec!["synth", m, BUNNY, "-o", out],
+        vec!["remesh", m, "--vertices", "100", "-o", out],
+        vec!["render", m, "-o", out],
+    ] {
+        let r = btfsynth(&args);
+        assert_one_line_error(&r, "/proc/btfsynth-out: cannot write in /proc");
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(!stderr.contains(".tmp-") && !stderr.contains(".probe-"), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
+fn messages_carry_no_rust_debug_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let ply = dir.path().join("bunny.ply");
+    let a = analysis.to_str().unwrap();
+    let r = btfsynth(&["synth", a, BUNNY, "--vertices", "1500", "-o", ply.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let frames = dir.path().join("frames");
+    let r = btfsynth(&["render", ply.to_str().unwrap(), "--size", "16x16", "-o", frames.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && stderr.contains("pixel mode") && !stderr.contains("Pixel"), "{stderr}");
+    let header = std::fs::read(&ply).unwrap();
+    let header =
+        String::from_utf8_lossy(&header[..header.windows(10).position(|w| w == b"end_header").unwrap()]);
+    assert!(header.contains("1500 vertices") && !header.contains("Vertices("), "{header}");
+    // A sample smaller than one neighbourhood search: no "use --levels 0 or fewer".
+    let tiny = dir.path().join("tiny.png");
+    common::write_png(&tiny, 6, 6, common::pattern(1));
+    let r = btfsynth(&[
+        "analyze",
+        tiny.to_str().unwrap(),
+        "--levels",
+        "1",
+        "-o",
+        dir.path().join("t").to_str().unwrap(),
+    ]);
+    assert_usage_error(&r, "the sample is 6x6 pixels");
+    assert!(!String::from_utf8_lossy(&r.stderr).contains("--levels 0"));
+}
+
+#[test]
+fn the_readme_documents_every_command() {
+    let overview = String::from_utf8_lossy(&btfsynth(&["--help"]).stdout).into_owned();
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let commands: Vec<&str> = overview
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .collect();
+    assert!(commands.len() >= 9, "{overview}");
+    for command in commands {
+        assert!(readme.contains(&format!("### `btfsynth {command}")), "README has no section for {command}");
+    }
+    assert!(readme.contains("cargo test --release"), "the README's test command shares the demo's build");
+}

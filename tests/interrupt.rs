@@ -1,0 +1,123 @@
+//! Ctrl-C (SIGINT) or SIGTERM in the middle of a run: the process removes its unfinished
+//! outputs (hidden `.NAME.tmp-PID` siblings) and exits with code 130, leaving the output
+//! directory as it was.
+//!
+//! `render` and `gen` are interrupted while they write files into their staging
+//! directories. `analyze` and `synth` stage their outputs only for the moment it takes to
+//! write them, so those runs set `BTFSYNTH_TEST_HOLD_STAGING_MS`, which keeps each
+//! temporary on disk a while once it exists, and the signal is sent then.
+
+mod common;
+
+use common::{btfsynth, entries, BUNNY};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Hidden entries of `dir` (where the staged outputs live).
+fn hidden(dir: &Path) -> Vec<String> {
+    entries(dir).into_iter().filter(|e| e.starts_with('.')).collect()
+}
+
+/// Runs `btfsynth args` in `dir` until `ready(dir)` holds, sends `signal`, and checks that
+/// the run ends with code 130, one line saying so, and `dir` as it was before the run.
+fn interrupt(dir: &Path, args: &[&str], signal: &str, hold: bool, ready: impl Fn(&Path) -> bool) {
+    let before = entries(dir);
+    let mut command = Command::new(env!("CARGO_BIN_EXE_btfsynth"));
+    command.args(args).current_dir(dir).stdout(Stdio::null()).stderr(Stdio::piped());
+    if hold {
+        command.env(btfsynth::fsutil::HOLD_STAGING_ENV, "20000");
+    }
+    let mut child = command.spawn().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while !ready(dir) {
+        if let Some(status) = child.try_wait().unwrap() {
+            let out = child.wait_with_output().unwrap();
+            panic!(
+                "{args:?} ended ({status}) before it could be interrupted: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        assert!(Instant::now() < deadline, "{args:?}: never reached the point to interrupt");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let killed = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{args:?} after {signal}: {stderr}");
+    let last = stderr.lines().rfind(|l| !l.trim().is_empty());
+    assert_eq!(last, Some("error: interrupted; unfinished outputs were removed"), "{stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+    assert_eq!(entries(dir), before, "{args:?}: nothing left behind after {signal}");
+}
+
+/// True once a temporary output (`.NAME.tmp-PID`) exists in `dir`.
+fn staged(dir: &Path) -> bool {
+    hidden(dir).iter().any(|h| h.contains(".tmp-"))
+}
+
+/// True once a hidden directory in `dir` holds at least one file.
+fn staging_has_files(dir: &Path) -> bool {
+    hidden(dir).iter().any(|h| !entries(&dir.join(h)).is_empty())
+}
+
+#[test]
+fn an_interrupted_render_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let r = btfsynth(&[
+        "-q",
+        "synth",
+        analysis.to_str().unwrap(),
+        BUNNY,
+        "--vertices",
+        "1500",
+        "-o",
+        dir.path().join("bunny.ply").to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // Interrupted once a few frames of a long orbit are on disk, by Ctrl-C and by SIGTERM.
+    let args = ["-q", "render", "bunny.ply", "--size", "256x256", "--frames", "400", "-o", "frames"];
+    interrupt(dir.path(), &args, "-INT", false, staging_has_files);
+    interrupt(dir.path(), &args, "-TERM", false, staging_has_files);
+}
+
+#[test]
+fn an_interrupted_gen_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    // 6561 small images: interrupted while they are being written.
+    let args = ["-q", "gen", "pebbles", "--size", "8", "--spp", "1", "--format", "png", "-o", "stack"];
+    interrupt(dir.path(), &args, "-INT", false, staging_has_files);
+}
+
+#[test]
+fn an_interrupted_analyze_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let args = [
+        "-q",
+        "analyze",
+        texture,
+        "--crop",
+        "0,0,48,48",
+        "--textons",
+        "32",
+        "--levels",
+        "2",
+        "-o",
+        "analysis",
+    ];
+    interrupt(dir.path(), &args, "-INT", true, staged);
+}
+
+#[test]
+fn an_interrupted_synth_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let a = analysis.to_str().unwrap();
+    let surface = ["-q", "synth", a, BUNNY, "--vertices", "1500", "-o", "bunny.ply"];
+    interrupt(dir.path(), &surface, "-INT", true, staged);
+    let plane = ["-q", "synth", a, "--plane", "32x32", "-o", "plane"];
+    interrupt(dir.path(), &plane, "-TERM", true, staged);
+}
