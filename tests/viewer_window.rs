@@ -86,8 +86,10 @@ fn screenshot(display: &str, id: &str) -> Option<image::RgbImage> {
     image::load_from_memory(&out.stdout).ok().map(|i| i.into_rgb8())
 }
 
-fn distinct_colours(image: &image::RgbImage) -> usize {
-    image.pixels().map(|p| p.0).collect::<std::collections::HashSet<_>>().len()
+/// Pixels unlike the background (the bottom-right corner, which the model never reaches).
+fn model_pixels(image: &image::RgbImage) -> usize {
+    let background = image.get_pixel(image.width() - 1, image.height() - 1).0;
+    image.pixels().filter(|p| p.0.iter().zip(background).any(|(a, b)| a.abs_diff(b) > 20)).count()
 }
 
 /// Mean absolute difference per channel, in 8-bit levels.
@@ -179,18 +181,16 @@ fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
         return;
     };
 
-    // The model is drawn (many colours, not the background alone), under the overlay.
-    // Mesa's software drivers compile the shaders on the first frame: minutes on a busy
-    // machine when their shader cache is cold.
+    // The model is drawn (a twentieth of the window unlike the background), under the
+    // overlay. Counting colours instead failed on grey materials (172 colours in all).
+    // Mesa's software drivers compile the shaders on the first frame (1.2 s here; far
+    // longer on a busy machine with a cold shader cache).
     let started = Instant::now();
-    let first = wait_for("the model on screen", Duration::from_secs(600), || {
-        screenshot(&display, &window).filter(|s| distinct_colours(s) > 200 && overlay_text_pixels(s) > 20)
+    let shows_model = |s: &image::RgbImage| model_pixels(s) > 320 * 240 / 20;
+    wait_for("the model on screen", Duration::from_secs(180), || {
+        screenshot(&display, &window).filter(|s| shows_model(s) && overlay_text_pixels(s) > 20)
     });
     eprintln!("the first frame showed after {:.1} s", started.elapsed().as_secs_f64());
-    let background = first.get_pixel(first.width() - 1, first.height() - 1).0;
-    let model =
-        first.pixels().filter(|p| p.0.iter().zip(background).any(|(a, b)| a.abs_diff(b) > 20)).count();
-    assert!(model > 320 * 240 / 20, "the model covers {model} pixels");
 
     // O hides the overlay; Up raises the light by 5° a press, so nine bring it overhead,
     // where its orbit no longer moves it: the picture stands still.
@@ -219,6 +219,6 @@ fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
     wait_for("the saved frame", Duration::from_secs(60), || saved.is_file().then_some(()));
     let frame = image::open(&saved).unwrap().into_rgb8();
     assert_eq!(frame.dimensions(), (320, 240));
-    assert!(distinct_colours(&frame) > 100, "the saved frame shows the model");
+    assert!(shows_model(&frame), "the saved frame shows the model");
     assert!(mean_difference(&frame, &textons) < 8.0, "the saved frame is what the window shows");
 }
