@@ -1,6 +1,8 @@
 // The surface pass. Which images a vertex blends and their weights come from the CPU
-// (Scene::vertex_blends, the one shading core); this shader only fetches texels and sums,
-// mirroring Material::texel, Material::shade, Scene::predict_uv and Scene::shade_point.
+// (Scene::vertex_blends, the one shading core), and so does the environment's share (per
+// vertex a patch of environment-lit texels, Ambient::compute); this shader only fetches
+// texels and sums, mirroring Material::texel, Material::shade, Scene::predict_uv,
+// Ambient::at and the CPU renderer's Shading::ray.
 
 struct Uniforms {
     light_view_proj: mat4x4<f32>,
@@ -19,6 +21,8 @@ struct Uniforms {
     // x: one sample texel in model units; y: normal offset of shadow lookups (model units);
     // z: one shadow-map texel in uv units
     params: vec4<f32>,
+    // x: strength of the directional light; y: 1 to add the environment's patches
+    lighting: vec4<f32>,
 };
 
 struct Vertex {
@@ -45,6 +49,11 @@ struct Blend {
 @group(0) @binding(6) var shadow_sampler: sampler_comparison;
 // per image: layer, then the texel origin of its tile (AtlasLayout::place)
 @group(0) @binding(7) var<storage, read> places: array<vec4<i32>>;
+// per vertex, its environment patch: first texel x, y; width | height << 16; offset into
+// patch_texels (in texels)
+@group(0) @binding(8) var<storage, read> patches: array<vec4<i32>>;
+// the patches' environment-lit texels, RGB
+@group(0) @binding(9) var<storage, read> patch_texels: array<f32>;
 // Vertex mode: each vertex's colour, written once per vertex by cs_vertex_colours (binding 1)
 // and read per corner by vs_surface (binding 0), the same buffer.
 @group(1) @binding(0) var<storage, read> vertex_colours: array<vec4<f32>>;
@@ -159,13 +168,39 @@ fn uv_of(v: u32) -> vec2<f32> {
     return vec2<f32>(vertices[v].s_u.w, vertices[v].t_v.w);
 }
 
-// Scene::vertex_colours: the vertex's blend at its own coordinate, black where unlit.
+fn patch_texel(base: i32, width: i32, height: i32, x: f32, y: f32) -> vec3<f32> {
+    let i = clamp(i32(x), 0, width - 1);
+    let j = clamp(i32(y), 0, height - 1);
+    let o = 3 * (base + j * width + i);
+    return vec3<f32>(patch_texels[o], patch_texels[o + 1], patch_texels[o + 2]);
+}
+
+// Ambient::at: the environment's colour at uv as vertex v sees it, bilinear in its patch.
+fn ambient_at(v: u32, uv: vec2<f32>) -> vec3<f32> {
+    let p = patches[v];
+    let width = p.z & 0xffff;
+    let height = p.z >> 16u;
+    let local = uv - vec2<f32>(f32(p.x), f32(p.y));
+    let f = floor(local);
+    let t = local - f;
+    let top = mix(patch_texel(p.w, width, height, f.x, f.y), patch_texel(p.w, width, height, f.x + 1.0, f.y), t.x);
+    let bottom =
+        mix(patch_texel(p.w, width, height, f.x, f.y + 1.0), patch_texel(p.w, width, height, f.x + 1.0, f.y + 1.0), t.x);
+    return mix(top, bottom, t.y);
+}
+
+// The CPU renderer's vertex colours: the directional light's blend at the vertex's own
+// coordinate (black where unlit), plus the environment's share there.
 fn vertex_colour(v: u32) -> vec3<f32> {
     let n = vertices[v].n.xyz;
-    if dot(n, u.light.xyz) <= 0.0 {
-        return vec3<f32>(0.0);
+    var c = vec3<f32>(0.0);
+    if u.lighting.x > 0.0 && dot(n, u.light.xyz) > 0.0 {
+        c = u.lighting.x * shade(v, uv_of(v)) * step(0.5, light_reaches(position(v), n));
     }
-    return shade(v, uv_of(v)) * step(0.5, light_reaches(position(v), n));
+    if u.lighting.y != 0.0 {
+        c += ambient_at(v, uv_of(v));
+    }
+    return c;
 }
 
 // The camera's clip position of vertex v: the one expression both vs_depth and vs_surface use.
@@ -241,14 +276,19 @@ fn fs_surface(in: Varyings) -> @location(0) vec4<f32> {
     if u.flags.x == 0u {
         return vec4<f32>(in.colour, 1.0);
     }
-    if dot(normal, u.light.xyz) <= 0.0 {
-        return black;
+    let uv_a = predict_uv(a, p);
+    let uv_b = predict_uv(b, p);
+    let uv_c = predict_uv(c, p);
+    var colour = vec3<f32>(0.0);
+    if u.lighting.x > 0.0 && dot(normal, u.light.xyz) > 0.0 {
+        let lit = light_reaches(p, normal);
+        if lit > 0.0 {
+            colour = u.lighting.x * lit
+                * (in.bary.x * shade(a, uv_a) + in.bary.y * shade(b, uv_b) + in.bary.z * shade(c, uv_c));
+        }
     }
-    let lit = light_reaches(p, normal);
-    if lit <= 0.0 {
-        return black;
+    if u.lighting.y != 0.0 {
+        colour += in.bary.x * ambient_at(a, uv_a) + in.bary.y * ambient_at(b, uv_b) + in.bary.z * ambient_at(c, uv_c);
     }
-    let colour = in.bary.x * shade(a, predict_uv(a, p)) + in.bary.y * shade(b, predict_uv(b, p))
-        + in.bary.z * shade(c, predict_uv(c, p));
-    return vec4<f32>(colour * lit, 1.0);
+    return vec4<f32>(colour, 1.0);
 }

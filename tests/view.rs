@@ -45,9 +45,13 @@ fn gpu_frames_match_cpu_frames_in_both_modes() {
     let dir = tempfile::tempdir().unwrap();
     let surface = bunny_surface(dir.path());
     let s = surface.to_str().unwrap();
-    for mode in ["pixel", "vertex"] {
-        let shot = ["--size", "256x256", "--light", "45,45", "--mode", mode, "--format", "exr"];
-        let (cpu, gpu) = (dir.path().join(format!("cpu-{mode}")), dir.path().join(format!("gpu-{mode}")));
+    // Both modes under the directional light, and both under the sky (sun and environment).
+    for (mode, lighting) in [("pixel", "sun"), ("vertex", "sun"), ("pixel", "sky"), ("vertex", "sky")] {
+        let env: &[&str] = if lighting == "sky" { &["--env", "sky"] } else { &[] };
+        let shot =
+            [&["--size", "256x256", "--light", "45,45", "--mode", mode, "--format", "exr"][..], env].concat();
+        let name = format!("{mode}-{lighting}");
+        let (cpu, gpu) = (dir.path().join(format!("cpu-{name}")), dir.path().join(format!("gpu-{name}")));
         let r = btfsynth(&[&["-q", "render", s][..], &shot, &["-o", cpu.to_str().unwrap()]].concat());
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         let g =
@@ -60,10 +64,10 @@ fn gpu_frames_match_cpu_frames_in_both_modes() {
         assert!(stderr.contains("ms per frame"), "{stderr}");
         let (a, b) = (read_rgb(&cpu.join("frame_0000.exr")), read_rgb(&gpu.join("frame_0000.exr")));
         let covered = b.iter().filter(|p| p.iter().any(|&c| c > 0.0)).count();
-        assert!(covered > a.len() / 20, "{mode}: the GPU frame shows the model ({covered} lit pixels)");
+        assert!(covered > a.len() / 20, "{name}: the GPU frame shows the model ({covered} lit pixels)");
         let mad = mean_abs_difference(&a, &b);
-        eprintln!("{mode} mode: mean |CPU − GPU| = {mad:.5}");
-        assert!(mad < 0.02, "{mode} mode: CPU and GPU frames differ by {mad} on average");
+        eprintln!("{name}: mean |CPU − GPU| = {mad:.5}");
+        assert!(mad < 0.02, "{name}: CPU and GPU frames differ by {mad} on average");
         assert!(gpu.join("contact.png").is_file());
     }
 }

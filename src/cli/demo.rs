@@ -76,7 +76,9 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     let bunny = data.join("bunny-1k8.obj");
     eprintln!("[5/6] the pebbles BTF on {}: a 20k-vertex surface texton map", bunny.display());
     surface_map(&out("analysis"), &bunny, &out("bunny.ply"), bars)?;
-    eprintln!("[6/6] rendering a {DEMO_FRAMES}-frame light orbit, beside the sample under the same light");
+    eprintln!(
+        "[6/6] rendering a {DEMO_FRAMES}-frame sun orbit under a sky, beside the sample under the same light"
+    );
     light_orbit(&out("bunny.ply"), &out("frames"), bars)?;
     eprintln!(
         "done: look at {}/contact.png (the bunny under a moving light, beside the sample), \
@@ -96,13 +98,24 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
 /// Frames of the demo's light orbit.
 const DEMO_FRAMES: usize = 16;
 
-/// Renders the surface map under a light circling at 45° elevation, EXR and PNG frames.
+/// Renders the surface map under a sun circling at 45° elevation and the built-in sky, EXR
+/// and PNG frames.
 fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
     let (scene, analysis) = open_surface(surface, None, true)?;
     let material = Material::open(&analysis)?;
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
-    render_sequence((&scene, &material), &plan, RenderOptions::default(), true, &mut writer, bars)?;
+    // The sky lights what the orbiting sun leaves in shadow (`render --env sky`).
+    let sky = crate::render::Environment::sky();
+    render_sequence(
+        (&scene, &material),
+        &plan,
+        RenderOptions::default(),
+        Some(&sky),
+        true,
+        &mut writer,
+        bars,
+    )?;
     writer.finish()?;
     Ok(())
 }

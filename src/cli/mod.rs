@@ -8,6 +8,7 @@ mod export;
 mod gen;
 mod info;
 mod progress;
+mod relight;
 mod remesh;
 mod render;
 mod shots;
@@ -56,6 +57,8 @@ enum Command {
     /// Render a surface map on the GPU (wgpu): an interactive window, or --headless frames.
     #[cfg(feature = "gpu")]
     View(view::ViewArgs),
+    /// The sample itself, rectified, under any view and light (or environment), measured or not.
+    Relight(relight::RelightArgs),
     /// Convert a stack: to a folder of EXR/PNG images, or to a DFMF .btf file (--to btf).
     Convert(convert::ConvertArgs),
     /// Describe a path: a BTF stack (manifest, Bonn/UTIA images or a single image) or an analysis.
@@ -92,6 +95,7 @@ pub fn main() -> ExitCode {
         Command::Render(args) => render::run(args, &bars),
         #[cfg(feature = "gpu")]
         Command::View(args) => view::run(args, &bars),
+        Command::Relight(args) => relight::run(args, &bars),
         Command::Convert(args) => convert::run(args, &bars),
         Command::Info(args) => info::run(args, &bars),
         Command::Demo(args) => demo::run(args, &bars),

@@ -1,7 +1,9 @@
 //! Options that `render` and `view` share: which surface, which shots, which shading.
 
 use crate::render::scene::{open_surface, Scene};
-use crate::render::{FrameFormat, Mode, Orbit, ShotPlan};
+use crate::render::{Environment, FrameFormat, Mode, Orbit, ShotPlan};
+use anyhow::Result;
+use glam::Vec3;
 use std::path::PathBuf;
 
 /// The surface map, the camera and light, and the shading mode.
@@ -42,6 +44,47 @@ pub struct ShotArgs {
     /// Shading between vertices.
     #[arg(long, value_enum, default_value_t = Mode::Pixel)]
     pub mode: Mode,
+}
+
+/// What lights the model besides (or instead of) the directional light.
+#[derive(clap::Args, Clone, Debug)]
+pub struct LightingArgs {
+    /// Light from every direction, integrated over the sample's measured light directions:
+    /// `uniform` (a white sky of radiance 1), `sky` (a clear sky, with the sun along
+    /// --light), or an equirectangular .exr/.hdr map (+Y up, top row the zenith, column 0
+    /// towards +Z). A map or `uniform` replaces the directional light; `sky` keeps it.
+    #[arg(long, value_name = "uniform|sky|FILE")]
+    pub env: Option<String>,
+    /// Add a uniform sky of radiance F, so that nothing is black: 1 lights a plane facing up
+    /// as much as the directional light does at normal incidence.
+    #[arg(long, value_name = "F", default_value_t = 0.0, value_parser = parse_ambient, allow_negative_numbers = true)]
+    pub ambient: f32,
+}
+
+impl LightingArgs {
+    /// The directional light's strength (0 or 1) and the environment, if any.
+    pub fn lighting(&self) -> Result<(f32, Option<Environment>)> {
+        let (sun, env) = match self.env.as_deref() {
+            None => (1.0, None),
+            Some("uniform") => (0.0, Some(Environment::uniform(Vec3::ONE))),
+            Some("sky" | "sky+sun") => (1.0, Some(Environment::sky())),
+            Some(file) => (0.0, Some(Environment::open(std::path::Path::new(file))?)),
+        };
+        let env = match (env, self.ambient) {
+            (env, a) if a <= 0.0 => env,
+            (Some(e), a) => Some(e.with_uniform(Vec3::splat(a))),
+            (None, a) => Some(Environment::uniform(Vec3::splat(a))),
+        };
+        Ok((sun, env))
+    }
+}
+
+/// A radiance: finite and not negative.
+fn parse_ambient(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("'{s}': expected a radiance of 0 or more, e.g. 0.2")),
+    }
 }
 
 /// How a sequence is written (the output directory itself is each command's own flag:

@@ -1,9 +1,9 @@
 //! `btfsynth view`: the wgpu renderer, in a window or (`--headless`) offscreen into frames.
 
 use super::progress::Bars;
-use super::shots::{OutputArgs, ShotArgs};
+use super::shots::{LightingArgs, OutputArgs, ShotArgs};
 use crate::progress::Progress;
-use crate::render::gpu::{Display, GpuRenderer};
+use crate::render::gpu::{Display, GpuLighting, GpuRenderer};
 use crate::render::{viewer, Material, SequenceWriter};
 use anyhow::Result;
 use std::path::PathBuf;
@@ -15,7 +15,8 @@ use std::time::Instant;
 btfsynth view [OPTIONS] --headless -o <DIR> <SURFACE>",
     after_help = "Examples:\n  btfsynth view bunny.ply\n  \
 btfsynth view bunny.ply --headless -o frames/ --frames 24 --size 1024x1024 --format png\n\n\
-Without --headless a window opens; its keys are printed when it does."
+Without --headless a window opens; its keys are printed when it does. The window shows the frame \
+rate, the light and the mode; S saves the frame into --save-dir."
 )]
 pub struct ViewArgs {
     #[command(flatten)]
@@ -23,6 +24,8 @@ pub struct ViewArgs {
     /// Output directory of --headless: the frames and contact.png.
     #[arg(short, long, value_name = "DIR", required_if_eq("headless", "true"))]
     output: Option<PathBuf>,
+    #[command(flatten)]
+    lighting: LightingArgs,
     #[command(flatten)]
     out: OutputArgs,
     /// Render the shots offscreen into -o DIR (the same light orbit as `render`) instead of
@@ -32,9 +35,13 @@ pub struct ViewArgs {
     /// What the surface shows (headless; in the window, keys B and T switch).
     #[arg(long, value_enum, default_value_t = DisplayArg::Btf)]
     display: DisplayArg,
-    /// No shadow map (every point facing the light is lit).
+    /// No shadow map (every point facing the light is lit), and no shadows of the
+    /// environment's light cells.
     #[arg(long)]
     no_shadows: bool,
+    /// Where the window's S key saves frames (view-0000.png, view-0001.png, …).
+    #[arg(long, value_name = "DIR", default_value = ".")]
+    save_dir: PathBuf,
 }
 
 /// `--display` values.
@@ -60,8 +67,9 @@ impl From<DisplayArg> for Display {
 
 /// Some Vulkan drivers try to reach a Wayland compositor while listing devices, and
 /// libwayland then prints "error: XDG_RUNTIME_DIR is invalid or not set" although nothing is
-/// wrong. Offscreen rendering needs no display: with no session variables set, point the
-/// probe at a directory that holds no compositor socket, so it fails quietly.
+/// wrong. Offscreen rendering needs no display, and a window without WAYLAND_DISPLAY opens
+/// on X11: with no session variables set, point the probe at a directory that holds no
+/// compositor socket, so it fails quietly.
 fn quiet_wayland_probe() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir().join("btfsynth-no-display"));
@@ -70,21 +78,26 @@ fn quiet_wayland_probe() {
 
 pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     let plan = args.shots.plan();
+    let (sun, environment) = args.lighting.lighting()?;
+    let lighting = GpuLighting { sun, environment, shadows: !args.no_shadows };
+    quiet_wayland_probe();
     if !args.headless {
+        if !args.save_dir.is_dir() {
+            anyhow::bail!("--save-dir {}: not a directory", args.save_dir.display());
+        }
         let (scene, analysis) = args.shots.open_surface()?;
         let material = Material::open(&analysis)?;
-        return Ok(viewer::run(scene, material, &plan, args.shots.mode)?);
+        let options = viewer::ViewerOptions { mode: args.shots.mode, lighting, save_dir: args.save_dir };
+        return Ok(viewer::run(scene, material, &plan, options)?);
     }
     let Some(dir) = &args.output else {
         return Err(super::usage("--headless renders into a directory: give -o DIR"));
     };
-    quiet_wayland_probe();
     let mut writer = SequenceWriter::new(dir, &[args.out.format], args.out.force)?;
     let (scene, analysis) = args.shots.open_surface()?;
     let material = Material::open(&analysis)?;
     let vertices = scene.mesh.vertex_count();
-    let mut renderer = GpuRenderer::headless(scene, material, plan.size)?;
-    renderer.shadows = !args.no_shadows;
+    let mut renderer = GpuRenderer::headless(scene, material, plan.size, lighting)?;
     let shots = plan.shots(renderer.scene().mesh.bounds());
     bars.start("rendering", shots.len() as u64);
     let mut seconds = 0.0;
@@ -98,12 +111,14 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     bars.finish();
     let dir = writer.finish()?;
     eprintln!(
-        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode): {:.1} ms per frame",
+        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode, {} samples per pixel): \
+         {:.1} ms per frame",
         shots.len(),
         plan.size.0,
         plan.size.1,
         renderer.adapter_name(),
         args.shots.mode_name(),
+        renderer.target_format().samples,
         1e3 * seconds / shots.len() as f64
     );
     println!("{}", dir.join("contact.png").display());

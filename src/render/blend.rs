@@ -8,6 +8,18 @@
 //! as a light or the camera moves. Barycentric weights would need a triangulation of each
 //! dome; this scheme works on any direction set (UBO, Bonn, a grid, a hand-made manifest).
 //! A query within [`EXACT_RADIANS`] of a sampled direction returns that direction alone.
+//!
+//! **Beyond the dome.** A measured dome stops short of the horizon (Bonn: θ ≤ 75°). A query
+//! beyond its largest θ would find its nearest directions partly on inner rings, towards
+//! the pole, whose images are lit more steeply and shadowed less. Instead, such a query is
+//! moved onto the outermost θ at its own azimuth and blended among the *rim* (the
+//! directions within half a typical spacing of the largest θ) only. To keep the blend
+//! continuous, the inner directions fade out over a band just inside the largest θ: their
+//! angular distances get a penalty that grows from 0 to infinity across the band, and the
+//! weights above stay continuous under any continuous distance. [`Material`] attenuates a
+//! light beyond the dome by the ratio of cosines ([`DirectionIndex::beyond_cosine_ratio`]).
+//!
+//! [`Material`]: super::Material
 
 use glam::Vec3;
 
@@ -37,6 +49,65 @@ pub struct DirectionIndex {
     /// cos of each row's upper θ edge: row r holds the queries with cos θ in
     /// (row_cos[r], row_cos[r − 1]], found without an acos.
     row_cos: [f32; THETA_CELLS - 1],
+    rim: Rim,
+}
+
+/// The outermost ring of a dome and the band inside it where inner directions fade out.
+#[derive(Clone, Debug)]
+struct Rim {
+    /// The largest θ of the set, in radians.
+    theta_max: f32,
+    /// Width of the fade band inside `theta_max`, in radians.
+    fade: f32,
+    /// cos(theta_max − fade): queries with a smaller z are in the band or beyond.
+    band_cos: f32,
+    /// The directions within half a typical spacing of `theta_max`, by azimuth.
+    members: Vec<u32>,
+    /// The members' azimuths in [0, 2π), ascending.
+    azimuths: Vec<f32>,
+    is_member: Vec<bool>,
+}
+
+impl Rim {
+    fn new(units: &[Vec3]) -> Rim {
+        let thetas: Vec<f32> = units.iter().map(|u| u.z.clamp(-1.0, 1.0).acos()).collect();
+        let theta_max = thetas.iter().copied().fold(0.0, f32::max);
+        // Typical angular spacing: the side of the solid angle per direction on the cap.
+        let cap = std::f32::consts::TAU * (1.0 - theta_max.cos());
+        let spacing = (cap / units.len() as f32).sqrt();
+        let is_member: Vec<bool> = thetas.iter().map(|&t| t >= theta_max - 0.5 * spacing).collect();
+        let azimuth =
+            |i: u32| units[i as usize].y.atan2(units[i as usize].x).rem_euclid(std::f32::consts::TAU);
+        let mut members: Vec<u32> = (0..units.len() as u32).filter(|&i| is_member[i as usize]).collect();
+        members.sort_by(|&a, &b| azimuth(a).total_cmp(&azimuth(b)));
+        let azimuths = members.iter().map(|&i| azimuth(i)).collect();
+        let fade = 0.25 * spacing;
+        Rim { theta_max, fade, band_cos: (theta_max - fade).cos(), members, azimuths, is_member }
+    }
+
+    /// The rim members that can be among the 5 nearest rim directions of a query at azimuth
+    /// `phi`: the 5 on either side of it by azimuth (all of a small rim).
+    fn near(&self, phi: f32) -> impl Iterator<Item = u32> + '_ {
+        let n = self.members.len();
+        let (start, count) =
+            if n <= 10 { (0, n) } else { (self.azimuths.partition_point(|&a| a < phi) + n - 5, 10) };
+        (start..start + count).map(move |k| self.members[k % n])
+    }
+
+    /// The penalty added to the distance of a non-rim direction for a query at polar angle
+    /// `theta`: 0 inside the band, growing to infinity at `theta_max`.
+    fn penalty(&self, theta: f32) -> f32 {
+        let start = self.theta_max - self.fade;
+        if theta <= start || self.fade <= 0.0 {
+            return 0.0;
+        }
+        let s = (theta - start) / self.fade;
+        if s >= 1.0 {
+            f32::INFINITY
+        } else {
+            self.fade * s / (1.0 - s)
+        }
+    }
 }
 
 impl DirectionIndex {
@@ -64,7 +135,43 @@ impl DirectionIndex {
             })
             .collect();
         let row_cos = std::array::from_fn(|k| ((k + 1) as f32 * dt).cos());
-        DirectionIndex { units, cells, row_cos }
+        let rim = Rim::new(&units);
+        DirectionIndex { units, cells, row_cos, rim }
+    }
+
+    /// The largest polar angle θ of the set, in radians: where the measured dome ends.
+    pub fn theta_max(&self) -> f32 {
+        self.rim.theta_max
+    }
+
+    /// The directions on the outermost ring (those a query beyond the dome blends), by
+    /// azimuth.
+    pub fn rim(&self) -> &[u32] {
+        &self.rim.members
+    }
+
+    /// For a query beyond the dome (θ > [`DirectionIndex::theta_max`]), cos θ / cos θ_max:
+    /// how much less light a plane receives from it than from the outermost ring; 1 inside
+    /// the dome. Below the horizon, 0.
+    pub fn beyond_cosine_ratio(&self, query: Vec3) -> f32 {
+        let cos_max = self.rim.theta_max.cos();
+        if query.z >= cos_max || cos_max <= 0.0 {
+            1.0
+        } else {
+            (query.z / cos_max).max(0.0)
+        }
+    }
+
+    /// The nearest direction to `query` (above the horizon): the Voronoi cell it falls in.
+    pub fn nearest(&self, query: Vec3) -> u32 {
+        let mut best = (f32::NEG_INFINITY, 0u32);
+        for &i in &self.cells[self.cell_of(query)] {
+            let d = query.dot(self.units[i as usize]);
+            if d > best.0 {
+                best = (d, i);
+            }
+        }
+        best.1
     }
 
     /// The indexed directions.
@@ -83,9 +190,12 @@ impl DirectionIndex {
     }
 
     /// The 4 nearest directions to `query` (a unit vector; below the horizon it is taken at
-    /// the horizon) and their weights.
+    /// the horizon) and their weights; beyond the dome, the rim's (see the module notes).
     pub fn nearest4(&self, query: Vec3) -> Nearest4 {
         let query = above_horizon(query);
+        if query.z < self.rim.band_cos && self.rim.fade > 0.0 {
+            return self.nearest4_near_rim(query, query.z.clamp(-1.0, 1.0).acos());
+        }
         // Rank by dot product (the larger, the nearer); take angles of the five kept only.
         let mut best = [(f32::NEG_INFINITY, 0u32); 5];
         for &i in &self.cells[self.cell_of(query)] {
@@ -107,6 +217,40 @@ impl DirectionIndex {
                 (f32::INFINITY, i)
             }
         }))
+    }
+
+    /// A query in the fade band or beyond the dome: moved onto the outermost θ if beyond,
+    /// inner directions penalised, rim directions always considered.
+    fn nearest4_near_rim(&self, query: Vec3, theta: f32) -> Nearest4 {
+        let q = if theta > self.rim.theta_max {
+            let (sin_t, cos_t) = self.rim.theta_max.sin_cos();
+            let flat = Vec3::new(query.x, query.y, 0.0).normalize_or(Vec3::X);
+            Vec3::new(flat.x * sin_t, flat.y * sin_t, cos_t)
+        } else {
+            query
+        };
+        let penalty = self.rim.penalty(theta);
+        let mut best = [(f32::INFINITY, 0u32); 5];
+        let mut consider = |i: u32| {
+            if best.iter().any(|b| b.1 == i && b.0.is_finite()) {
+                return;
+            }
+            let extra = if self.rim.is_member[i as usize] { 0.0 } else { penalty };
+            let d = angle(q, self.units[i as usize]) + extra;
+            if d < best[4].0 {
+                let mut k = 4;
+                while k > 0 && best[k - 1].0 > d {
+                    best[k] = best[k - 1];
+                    k -= 1;
+                }
+                best[k] = (d, i);
+            }
+        };
+        self.rim.near(q.y.atan2(q.x).rem_euclid(std::f32::consts::TAU)).for_each(&mut consider);
+        if penalty.is_finite() {
+            self.cells[self.cell_of(q)].iter().for_each(|&i| consider(i));
+        }
+        weights(&best)
     }
 
     fn cell_of(&self, q: Vec3) -> usize {
@@ -198,8 +342,10 @@ mod tests {
     #[test]
     fn grid_lookup_equals_brute_force() {
         let index = dome();
+        // Inside the dome, short of the band where inner directions fade out.
+        let inside = index.theta_max() - index.rim.fade;
         for k in 0..2000 {
-            let theta = crate::seeded::unit(3, k, 0, 0) * std::f32::consts::FRAC_PI_2;
+            let theta = crate::seeded::unit(3, k, 0, 0) * inside;
             let phi = crate::seeded::unit(3, k, 1, 0) * std::f32::consts::TAU;
             let q = spherical(theta, phi);
             let (a, b) = (index.nearest4(q), brute(&index, q));
@@ -208,6 +354,71 @@ mod tests {
                 assert!((wa - b.weight[j]).abs() < 1e-5, "query {q}: {a:?} vs {b:?}");
             }
         }
+    }
+
+    #[test]
+    fn nearest_is_the_voronoi_cell() {
+        let index = dome();
+        for k in 0..2000 {
+            let theta = crate::seeded::unit(4, k, 0, 0) * std::f32::consts::FRAC_PI_2;
+            let phi = crate::seeded::unit(4, k, 1, 0) * std::f32::consts::TAU;
+            let q = spherical(theta, phi);
+            let best = index.units().iter().map(|u| angle(q, *u)).fold(f32::MAX, f32::min);
+            assert!((angle(q, index.units()[index.nearest(q) as usize]) - best).abs() < 1e-6, "{q}");
+        }
+    }
+
+    #[test]
+    fn beyond_the_dome_only_the_outermost_ring_blends() {
+        let index = dome();
+        let theta_max = index.theta_max();
+        assert!((theta_max - 75f32.to_radians()).abs() < 1e-5);
+        assert_eq!(index.rim().len(), 24, "the 75° ring");
+        for k in 0..500 {
+            let theta =
+                theta_max + crate::seeded::unit(5, k, 0, 0) * (std::f32::consts::FRAC_PI_2 - theta_max);
+            let q = spherical(theta + 1e-4, crate::seeded::unit(5, k, 1, 0) * std::f32::consts::TAU);
+            let n = index.nearest4(q);
+            for j in 0..4 {
+                assert!(n.weight[j] == 0.0 || index.rim().contains(&n.index[j]), "{q}: {n:?}");
+            }
+            // The same as the 5 nearest rim directions to the query moved onto θ_max.
+            let on_rim = spherical(theta_max, q.y.atan2(q.x));
+            let mut all: Vec<(f32, u32)> =
+                index.rim().iter().map(|&i| (angle(on_rim, index.units()[i as usize]), i)).collect();
+            all.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let brute = weights(&std::array::from_fn(|k| all[k]));
+            for j in 0..4 {
+                let w: f32 = (0..4).filter(|&m| n.index[m] == brute.index[j]).map(|m| n.weight[m]).sum();
+                assert!((w - brute.weight[j]).abs() < 1e-4, "{q}: {n:?} vs {brute:?}");
+            }
+            assert!((n.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+            let ratio = index.beyond_cosine_ratio(q);
+            assert!((ratio - q.z / theta_max.cos()).abs() < 1e-5 && ratio < 1.0);
+        }
+        assert_eq!(index.beyond_cosine_ratio(spherical(0.3, 1.0)), 1.0);
+    }
+
+    #[test]
+    fn the_blend_is_continuous_across_the_fade_band_and_the_rim() {
+        // Each direction's weight, as a function of θ at a fixed φ between two rim
+        // directions: halving the step must halve the largest change (no jumps).
+        let index = dome();
+        let weights = |theta: f32| {
+            let n = index.nearest4(spherical(theta, 0.37));
+            let mut w = vec![0.0; index.len()];
+            (0..4).for_each(|j| w[n.index[j] as usize] += n.weight[j]);
+            w
+        };
+        let worst_step = |steps: usize| {
+            let (a, b) = (60f32.to_radians(), 85f32.to_radians());
+            let at = |k: usize| weights(a + (b - a) * k as f32 / steps as f32);
+            (1..=steps)
+                .map(|k| at(k).iter().zip(at(k - 1)).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max))
+                .fold(0.0, f32::max)
+        };
+        let (coarse, fine) = (worst_step(4000), worst_step(8000));
+        assert!(fine < 0.6 * coarse, "largest step {coarse} at 4k steps, {fine} at 8k");
     }
 
     #[test]

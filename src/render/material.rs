@@ -8,10 +8,12 @@ use crate::btf::{directions, Direction, DirectionPair};
 use crate::{Error, Result};
 use glam::Vec3;
 use half::f16;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// Images a (view, light) query blends, with weights. Weights sum to 1 when the point is
-/// lit (times n·l for a one-light sample, see [`Material::blend`]) and to 0 when not.
+/// lit (times n·l for a one-light sample, see [`Material::blend`]; times the cosine ratio
+/// for a light beyond the dome, see [`Material::light_weights`]) and to 0 when not.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blend16 {
     pub image: [u32; 16],
@@ -25,10 +27,14 @@ impl Blend16 {
 
 /// A BTF sample ready for shading: f32 RGB images, direction indices and the table from
 /// (view, light) to image.
+///
+/// The pixels are kept texel-major: all images' values at one texel side by side. A blend
+/// reads its 16 images at the same texel (or the same four bilinear taps), so its reads fall
+/// in one small block instead of 16 image planes a fixed stride apart, which thrash the cache.
 pub struct Material {
     width: usize,
     height: usize,
-    /// `[n][height][width][3]` linear RGB.
+    /// `[height][width][n][3]` linear RGB.
     pixels: Vec<f32>,
     pairs: Vec<DirectionPair>,
     views: DirectionIndex,
@@ -49,6 +55,22 @@ impl Material {
                 pairs.len()
             )));
         }
+        Material::from_image_major(width, height, pairs, |i| pixels[i])
+    }
+
+    /// A material whose image-major value `i` (of `[n][height][width][3]`) is `value(i)`.
+    fn from_image_major(
+        width: usize,
+        height: usize,
+        pairs: Vec<DirectionPair>,
+        value: impl Fn(usize) -> f32 + Sync,
+    ) -> Result<Material> {
+        let (n, plane) = (pairs.len(), width * height * 3);
+        let pixels = (0..width * height)
+            .into_par_iter()
+            .flat_map_iter(|t| (0..n).flat_map(move |i| (0..3).map(move |c| (i, t, c))))
+            .map(|(i, t, c)| value(i * plane + t * 3 + c))
+            .collect();
         let views = directions::distinct(pairs.iter().map(|p| p.view));
         let lights = directions::distinct(pairs.iter().map(|p| p.light));
         let mut image_of = vec![None; views.len() * lights.len()];
@@ -93,16 +115,38 @@ impl Material {
             })
             .collect::<Result<Vec<_>>>()
             .map_err(|e| Error::format(analysis_dir.join("directions.npy"), e.to_string()))?;
-        let pixels = images.data.iter().map(|v| v.to_f32()).collect();
-        let mut material = Material::new(w, h, pixels, pairs)?;
+        if images.data.len() != n * h * w * 3 || n == 0 || w == 0 || h == 0 {
+            return Err(Error::format(
+                analysis_dir.join("images.npy"),
+                "no images, or fewer values than its shape",
+            ));
+        }
+        let mut material = Material::from_image_major(w, h, pairs, |i| images.data[i].to_f32())?;
         material.tileable = manifest.params.tileable;
         Ok(material)
     }
 
+    /// The material of a BTF stack as loaded (not tileable).
+    pub fn from_btf(btf: &crate::btf::Btf) -> Result<Material> {
+        let pixels = btf.pixels();
+        Material::from_image_major(btf.width(), btf.height(), btf.pairs().to_vec(), |i| pixels[i].to_f32())
+    }
+
+    /// Opens an analysis directory (see [`Material::open`]) or, for any other path, loads a
+    /// BTF stack (a stack directory, a `btf.json` or a single image).
+    pub fn open_any(path: &Path, progress: &dyn crate::progress::Progress) -> Result<Material> {
+        if path.join(store::MANIFEST).is_file() {
+            return Material::open(path);
+        }
+        Material::from_btf(&crate::btf::load(path, &Default::default(), progress)?)
+    }
+
+    /// Sample width in texels.
     pub fn width(&self) -> usize {
         self.width
     }
 
+    /// Sample height in texels.
     pub fn height(&self) -> usize {
         self.height
     }
@@ -122,9 +166,15 @@ impl Material {
         &self.pairs
     }
 
-    /// All pixels, `[n][height][width][3]` linear RGB.
-    pub fn pixels(&self) -> &[f32] {
-        &self.pixels
+    /// Image `image`'s pixels, `[height][width][3]` linear RGB (a copy).
+    pub fn image(&self, image: u32) -> Vec<f32> {
+        let n = self.pairs.len();
+        (0..self.width * self.height)
+            .flat_map(|t| {
+                let o = (t * n + image as usize) * 3;
+                [self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]]
+            })
+            .collect()
     }
 
     /// The images to blend for a view and a light given in the local frame (x along s,
@@ -145,9 +195,52 @@ impl Material {
     }
 
     /// The 4 nearest sampled lights of a local light direction, weighted; `None` at or
-    /// below the horizon.
+    /// below the horizon. Beyond the dome's largest θ the light blends the outermost ring
+    /// ([`super::blend`]) and its weights are scaled by cos θ / cos θ_max: the outermost
+    /// images already hold the cosine of their own θ, and a plane receives that much less
+    /// light from further down. (A one-light sample is scaled by n·l instead.)
     pub fn light_weights(&self, light: Vec3) -> Option<Nearest4> {
-        (light.z > 0.0).then(|| self.lights.nearest4(light))
+        if light.z <= 0.0 {
+            return None;
+        }
+        let mut nl = self.lights.nearest4(light);
+        if self.lights.len() > 1 {
+            let ratio = self.lights.beyond_cosine_ratio(light);
+            nl.weight.iter_mut().for_each(|w| *w *= ratio);
+        }
+        Some(nl)
+    }
+
+    /// The sampled view directions.
+    pub fn view_index(&self) -> &DirectionIndex {
+        &self.views
+    }
+
+    /// The sampled light directions.
+    pub fn light_index(&self) -> &DirectionIndex {
+        &self.lights
+    }
+
+    /// The image taken under sampled view `view` and sampled light `light` (indices into
+    /// [`Material::view_index`] and [`Material::light_index`]), if the stack has it.
+    pub fn image_of(&self, view: u32, light: u32) -> Option<u32> {
+        self.image_of[view as usize * self.lights.len() + light as usize]
+    }
+
+    /// RGB of texel (x, y) of image `image`, with wrapping or clamping of out-of-range
+    /// texels as in the bilinear lookup.
+    pub fn pixel(&self, image: u32, x: i64, y: i64) -> Vec3 {
+        self.at(self.texel_block(x, y) + image as usize * 3)
+    }
+
+    /// Where texel (x, y)'s values start (wrapped or clamped into the sample).
+    pub fn texel_block(&self, x: i64, y: i64) -> usize {
+        (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * self.pairs.len() * 3
+    }
+
+    /// The RGB at value offset `o` of the texel-major pixels (a texel block plus 3 × image).
+    pub fn at(&self, o: usize) -> Vec3 {
+        Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
     }
 
     /// The 16 images of a view and a light selection; `cos_light` is the light's n·l,
@@ -175,7 +268,9 @@ impl Material {
             out = self.nearest_pair(nv, nl);
             present = 1.0;
         }
-        let cosine = if self.lights.len() == 1 { cos_light.max(0.0) } else { 1.0 };
+        // Beyond the dome the light weights sum to less than 1 (the cosine ratio): keep that.
+        let attenuation = nl.weight.iter().sum::<f32>().min(1.0);
+        let cosine = if self.lights.len() == 1 { cos_light.max(0.0) } else { attenuation };
         out.weight.iter_mut().for_each(|w| *w *= cosine / present);
         out
     }
@@ -201,13 +296,13 @@ impl Material {
         self.filtered(image, &self.taps(u, v))
     }
 
-    /// The four bilinear taps at (u, v): pixel offsets within an image and their weights
-    /// (computed once and shared by the 16 images of a blend).
+    /// The four bilinear taps at (u, v): texel blocks and their weights (computed once and
+    /// shared by the 16 images of a blend).
     fn taps(&self, u: f32, v: f32) -> [(usize, f32); 4] {
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let at = |x: i64, y: i64| (self.edge(y, self.height) * self.width + self.edge(x, self.width)) * 3;
+        let at = |x: i64, y: i64| self.texel_block(x, y);
         [
             (at(x0, y0), (1.0 - fx) * (1.0 - fy)),
             (at(x0 + 1, y0), fx * (1.0 - fy)),
@@ -217,12 +312,10 @@ impl Material {
     }
 
     fn filtered(&self, image: u32, taps: &[(usize, f32); 4]) -> Vec3 {
-        let base = image as usize * self.width * self.height * 3;
         let mut c = Vec3::ZERO;
-        for &(offset, weight) in taps {
+        for &(block, weight) in taps {
             if weight != 0.0 {
-                let o = base + offset;
-                c += weight * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+                c += weight * self.at(block + image as usize * 3);
             }
         }
         c
@@ -239,12 +332,11 @@ impl Material {
     /// The colour of a blend at texel (x, y) exactly (inside the sample): the vertex-mode
     /// lookup, without the bilinear weights.
     fn shade_texel(&self, blend: &Blend16, x: usize, y: usize) -> Vec3 {
-        let (plane, offset) = (self.width * self.height * 3, (y * self.width + x) * 3);
+        let block = (y * self.width + x) * self.pairs.len() * 3;
         let mut c = Vec3::ZERO;
         for k in 0..16 {
             if blend.weight[k] != 0.0 {
-                let o = blend.image[k] as usize * plane + offset;
-                c += blend.weight[k] * Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]);
+                c += blend.weight[k] * self.at(block + blend.image[k] as usize * 3);
             }
         }
         c
@@ -303,7 +395,9 @@ mod tests {
             let view = Vec3::new(t.sin() * 0.3, 0.2, 1.0).normalize();
             let light = Vec3::new((3.0 * t).cos(), (3.0 * t).sin(), 0.2 + t).normalize();
             let b = m.blend(view, light);
-            assert!((b.weight.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+            // Beyond the dome (θ > 75°) the weights sum to the cosine ratio.
+            let expected = (light.z / 75f32.to_radians().cos()).min(1.0);
+            assert!((b.weight.iter().sum::<f32>() - expected).abs() < 1e-5, "{light}");
         }
         assert_eq!(m.blend(Vec3::Z, Vec3::new(1.0, 0.0, -0.1).normalize()), Blend16::DARK);
     }
@@ -328,6 +422,32 @@ mod tests {
         // Continuous: halving the step halves the largest change. A jump would not shrink.
         let (coarse, fine) = (worst_step(10_000), worst_step(20_000));
         assert!(fine < 0.6 * coarse, "largest step {coarse} at 10k steps, {fine} at 20k");
+    }
+
+    #[test]
+    fn a_light_beyond_the_dome_is_never_brighter_than_the_outermost_ring() {
+        let pairs = DirectionSet::Ubo81.pairs();
+        let pixels = (0..pairs.len() * 12).map(|i| crate::seeded::unit(9, i as i64, 0, 0)).collect();
+        let m = Material::new(2, 2, pixels, pairs).unwrap();
+        let lights = m.light_index();
+        for view_index in [0u32, 17, 52, 80] {
+            let view = m.view_index().units()[view_index as usize];
+            for k in 0..200 {
+                let theta = (75.0 + 15.0 * crate::seeded::unit(10, k, 0, 0)).to_radians();
+                let phi = crate::seeded::unit(10, k, 1, 0) * std::f32::consts::TAU;
+                let light = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let b = m.blend(view, light);
+                for (u, v) in [(0.0, 0.0), (1.0, 0.0), (0.3, 0.8)] {
+                    let c = m.shade(&b, u, v);
+                    let brightest = lights
+                        .rim()
+                        .iter()
+                        .map(|&l| m.texel(m.image_of(view_index, l).unwrap(), u, v))
+                        .fold(Vec3::ZERO, Vec3::max);
+                    assert!(c.cmple(brightest + 1e-6).all(), "light θ={theta}: {c} > {brightest}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -6,16 +6,22 @@
 //! the 16 images and weights of a (view, light) query ([`material::Material::blend`], with
 //! the weighting scheme explained in [`blend`]) and the bilinear lookup.
 
+pub mod ambient;
 pub mod blend;
+pub mod environment;
 pub mod material;
 
+pub use environment::Environment;
 pub use material::{Blend16, Material};
 pub mod camera;
 pub mod cpu;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod output;
+pub mod overlay;
+pub mod relight;
 pub mod scene;
+pub mod shadow_map;
 #[cfg(feature = "gpu")]
 pub mod viewer;
 

@@ -7,7 +7,9 @@ use crate::fsutil::StagedDir;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
-/// A rendered image: linear RGBA, rows top to bottom; alpha 1 where the model covers.
+/// A rendered image: linear RGBA, rows top to bottom; alpha is the share of the pixel the
+/// model covers (1 inside, between 0 and 1 on anti-aliased edges) and the colour is
+/// premultiplied by it (as EXR expects).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
     pub width: usize,
@@ -40,16 +42,18 @@ impl Frame {
         out
     }
 
-    /// 8-bit sRGB RGBA.
+    /// 8-bit sRGB RGBA with straight (not premultiplied) alpha, as PNG expects.
     pub fn to_srgb8(&self) -> Vec<u8> {
         self.rgba
             .chunks_exact(4)
             .flat_map(|p| {
+                let a = p[3].clamp(0.0, 1.0);
+                let straight = |c: f32| if a > 0.0 { c / a } else { c };
                 [
-                    linear_to_srgb8(p[0]),
-                    linear_to_srgb8(p[1]),
-                    linear_to_srgb8(p[2]),
-                    (p[3].clamp(0.0, 1.0) * 255.0).round() as u8,
+                    linear_to_srgb8(straight(p[0])),
+                    linear_to_srgb8(straight(p[1])),
+                    linear_to_srgb8(straight(p[2])),
+                    (a * 255.0).round() as u8,
                 ]
             })
             .collect()
@@ -173,7 +177,7 @@ pub fn contact_sheet(frames: &[Frame]) -> Frame {
                 let p = f.pixel(x, y);
                 let o = ((y0 + y) * sheet.width + x0 + x) * 4;
                 for c in 0..3 {
-                    sheet.rgba[o + c] = p[c] * p[3] + sheet.rgba[o + c] * (1.0 - p[3]);
+                    sheet.rgba[o + c] = p[c] + sheet.rgba[o + c] * (1.0 - p[3]);
                 }
             }
         }

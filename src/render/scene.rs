@@ -62,6 +62,11 @@ impl Scene {
             .collect()
     }
 
+    /// Vertex `v`'s frame: s, t and n as world vectors.
+    pub fn frame(&self, v: usize) -> [Vec3; 3] {
+        [self.frames.s[v], self.frames.t[v], self.frames.n[v]]
+    }
+
     /// A world direction in vertex `v`'s (s, t, n) frame.
     pub fn to_local(&self, v: usize, d: Vec3) -> Vec3 {
         let f = &self.frames;
@@ -130,55 +135,121 @@ impl Scene {
 /// What per-vertex relighting keeps while only the light moves (Tong §6's interactive
 /// mode): per vertex its frame, sample coordinate and weighted nearest views for a fixed
 /// camera, stored in an order grouped by sample texel, so that consecutive vertices read
-/// the same texel of the images and stay in cache.
+/// the same texel of the images and stay in cache. With a tracer it also keeps, once per
+/// camera, which vertices matter at all: the corners of triangles with a corner the camera
+/// sees (facing it, nothing in between). The others are hidden from this camera whatever
+/// the light does, so they are not relit (their colour stays black); on a closed model that
+/// is more than half of them.
 pub struct Relighter {
     vertices: Vec<RelightVertex>,
+    count: usize,
+}
+
+/// How per-vertex relighting decides what the light reaches.
+#[derive(Clone, Copy)]
+pub enum Shadows<'a> {
+    /// Everything facing the light is lit.
+    None,
+    /// A shadow ray per vertex: exact.
+    Rays(&'a super::cpu::Tracer),
+    /// A lookup in a shadow map rasterised for this light: faster, exact to about a texel.
+    Map(&'a super::shadow_map::ShadowMap),
 }
 
 struct RelightVertex {
     index: u32,
+    position: Vec3,
     frame: [Vec3; 3],
     uv: Vec2,
     views: Nearest4,
 }
 
 impl Relighter {
-    pub fn new(scene: &Scene, material: &Material, camera: &super::Camera) -> Relighter {
+    /// Prepares relighting `scene` seen by `camera`; with `tracer`, only the vertices that
+    /// can show (see [`Relighter`]).
+    pub fn new(
+        scene: &Scene,
+        material: &Material,
+        camera: &super::Camera,
+        tracer: Option<&super::cpu::Tracer>,
+    ) -> Relighter {
         let positions = scene.mesh.positions();
+        let needed = tracer.map(|t| scene.seen_triangle_corners(camera, t));
         let f = &scene.frames;
         let mut vertices: Vec<RelightVertex> = (0..positions.len())
             .into_par_iter()
             .with_min_len(1024)
+            .filter(|&v| needed.as_ref().is_none_or(|n| n[v]))
             .map(|v| RelightVertex {
                 index: v as u32,
+                position: positions[v],
                 frame: [f.s[v], f.t[v], f.n[v]],
                 uv: scene.uv[v],
                 views: material.view_weights(scene.to_local(v, camera.towards_eye(positions[v]))),
             })
             .collect();
         vertices.sort_by_key(|r| (r.uv.y.floor() as i64, r.uv.x.floor() as i64));
-        Relighter { vertices }
+        Relighter { vertices, count: positions.len() }
     }
 
-    /// Per-vertex colours under a directional light towards `light` (no shadows).
-    pub fn colours(&self, material: &Material, light: Vec3) -> Vec<Vec3> {
+    /// How many vertices each frame relights.
+    pub fn relit(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Per-vertex colours under a directional light towards `light`; a vertex that
+    /// `shadows` says the light does not reach (asked only for vertices facing the light) is
+    /// black.
+    pub fn colours(&self, material: &Material, light: Vec3, shadows: Shadows<'_>) -> Vec<Vec3> {
         let in_order: Vec<Vec3> = self
             .vertices
             .par_iter()
-            .with_min_len(4096)
+            .with_min_len(1024)
             .map(|r| {
                 let [s, t, n] = r.frame;
                 let local = Vec3::new(light.dot(s), light.dot(t), light.dot(n));
                 let Some(nl) = material.light_weights(local) else { return Vec3::ZERO };
+                let lit = match shadows {
+                    Shadows::None => true,
+                    Shadows::Rays(tracer) => tracer.lit(r.position, n, light),
+                    Shadows::Map(map) => map.lit(r.position, n),
+                };
+                if !lit {
+                    return Vec3::ZERO;
+                }
                 let blend = material.combine(&r.views, &nl, local.z);
                 material.shade(&blend, r.uv.x, r.uv.y)
             })
             .collect();
-        let mut colours = vec![Vec3::ZERO; in_order.len()];
+        let mut colours = vec![Vec3::ZERO; self.count];
         for (r, c) in self.vertices.iter().zip(in_order) {
             colours[r.index as usize] = c;
         }
         colours
+    }
+}
+
+impl Scene {
+    /// Per vertex, whether it is a corner of a triangle that has a corner `camera` sees: one
+    /// facing the camera with nothing between them.
+    pub fn seen_triangle_corners(&self, camera: &super::Camera, tracer: &super::cpu::Tracer) -> Vec<bool> {
+        let positions = self.mesh.positions();
+        let seen: Vec<bool> = (0..positions.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|v| {
+                let towards = camera.towards_eye(positions[v]);
+                let n = self.frames.n[v];
+                n.dot(towards) > 0.0 && tracer.lit(positions[v], n, towards)
+            })
+            .collect();
+        let mut needed = vec![false; positions.len()];
+        for tri in self.mesh.triangles() {
+            if tri.iter().any(|&v| seen[v as usize]) {
+                tri.iter().for_each(|&v| needed[v as usize] = true);
+            }
+        }
+        needed
     }
 }
 

@@ -1,6 +1,7 @@
-//! The sample images on the GPU: a 2D texture array of Rgba16Float atlases, several images
-//! per layer as tiles, because a BTF has thousands of images and an array has few layers
-//! (256 by default). The shader fetches texels with `textureLoad` and filters by hand.
+//! The sample images on the GPU: a 2D texture array of Rgba16Float atlases (Rgba32Float
+//! where the adapter cannot sample half floats), several images per layer as tiles,
+//! because a BTF has thousands of images and an array has few layers (256 by default). The
+//! shader fetches texels with `textureLoad` and filters by hand.
 
 use crate::render::Material;
 use crate::{Error, Result};
@@ -32,11 +33,18 @@ impl AtlasLayout {
                 "sample images of {width}x{height} do not fit this GPU's {max_dim}-texel textures"
             )));
         }
+        // GL guesses a texture's view dimension from its layer count (1: a plain 2D texture,
+        // 6 or a multiple of 6: cube maps), so spread the images over at least 2 layers and
+        // skip those counts.
         let count = count.max(1);
-        let tiles_x = (max_dim / width).min(count);
-        let tiles_y = (max_dim / height).min(count.div_ceil(tiles_x));
+        let per_layer_wanted = count.div_ceil(2);
+        let tiles_x = (max_dim / width).min(per_layer_wanted);
+        let tiles_y = (max_dim / height).min(per_layer_wanted.div_ceil(tiles_x));
         let per_layer = tiles_x * tiles_y;
-        let layers = count.div_ceil(per_layer);
+        let mut layers = count.div_ceil(per_layer).max(2);
+        if layers % 6 == 0 {
+            layers += 1;
+        }
         if layers > max_layers {
             return Err(Error::invalid(format!(
                 "{count} sample images of {width}x{height} need {layers} texture layers of {max_dim}² \
@@ -58,12 +66,14 @@ impl AtlasLayout {
     }
 }
 
-/// Uploads every image of `material` into a new texture array laid out as `layout`.
+/// Uploads every image of `material` into a new texture array laid out as `layout`, of
+/// `format` (Rgba16Float or Rgba32Float).
 pub fn upload(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     material: &Material,
     layout: &AtlasLayout,
+    format: wgpu::TextureFormat,
 ) -> wgpu::Texture {
     let (lw, lh) = layout.layer_size();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -72,17 +82,19 @@ pub fn upload(
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba16Float,
+        format,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    let texels = (layout.width * layout.height) as usize;
-    for (i, rgb) in material.pixels().chunks_exact(texels * 3).enumerate() {
-        let rgba: Vec<u16> = rgb
-            .chunks_exact(3)
-            .flat_map(|p| [p[0], p[1], p[2], 1.0])
-            .map(|c| f16::from_f32(c).to_bits())
-            .collect();
+    let half = format == wgpu::TextureFormat::Rgba16Float;
+    for i in 0..material.len() {
+        let rgb = material.image(i as u32);
+        let rgba = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 1.0]);
+        let bytes: Vec<u8> = if half {
+            rgba.flat_map(|c| f16::from_f32(c).to_le_bytes()).collect()
+        } else {
+            rgba.flat_map(f32::to_le_bytes).collect()
+        };
         let (layer, x, y) = layout.place(i as u32);
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
@@ -91,10 +103,10 @@ pub fn upload(
                 origin: wgpu::Origin3d { x, y, z: layer },
                 aspect: wgpu::TextureAspect::All,
             },
-            bytemuck::cast_slice(&rgba),
+            &bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(layout.width * 8),
+                bytes_per_row: Some(layout.width * if half { 8 } else { 16 }),
                 rows_per_image: None,
             },
             wgpu::Extent3d { width: layout.width, height: layout.height, depth_or_array_layers: 1 },
@@ -108,11 +120,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn few_images_share_one_compact_layer() {
+    fn few_images_share_two_compact_layers() {
         let a = AtlasLayout::new(5, (48, 32), 8192, 256).unwrap();
-        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (5, 1, 5, 1));
-        assert_eq!(a.layer_size(), (240, 32));
-        assert_eq!(a.place(4), (0, 192, 0));
+        assert_eq!((a.tiles_x, a.tiles_y, a.per_layer, a.layers), (3, 1, 3, 2));
+        assert_eq!(a.layer_size(), (144, 32));
+        assert_eq!(a.place(4), (1, 48, 0));
+        // One image still makes two layers (GL would take one layer for a plain 2D texture).
+        assert_eq!(AtlasLayout::new(1, (48, 32), 8192, 256).unwrap().layers, 2);
     }
 
     #[test]
@@ -130,6 +144,13 @@ mod tests {
             assert!(l < a.layers && x + 256 <= 8192 && y + 256 <= 8192);
             assert!(seen.insert((l, x, y)));
         }
+    }
+
+    #[test]
+    fn layer_counts_that_gl_takes_for_cube_maps_are_skipped() {
+        // 6 × 1024 images of 256²: six full layers would be a cube map to GL.
+        let a = AtlasLayout::new(6 * 1024, (256, 256), 8192, 256).unwrap();
+        assert_eq!(a.layers, 7);
     }
 
     #[test]

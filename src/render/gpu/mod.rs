@@ -8,14 +8,18 @@
 
 pub mod atlas;
 pub mod context;
+pub mod overlay;
 pub mod passes;
 pub mod pipeline;
 pub mod readback;
 
-use super::{Blend16, Frame, Material, Mode, Scene, Shot};
+use super::ambient::{self, AmbientCache};
+use super::cpu::Tracer;
+use super::{Blend16, Camera, Environment, Frame, Material, Mode, Scene, Shot};
 use crate::Result;
 use context::Gpu;
-use passes::{FrameSettings, Passes};
+use passes::{FrameSettings, FrameTargets, Passes};
+use pipeline::TargetFormat;
 use rayon::prelude::*;
 
 /// What the surface shows.
@@ -48,27 +52,116 @@ pub fn display_blends(scene: &Scene, material: &Material, shot: &Shot, display: 
         .collect()
 }
 
-/// The colour target of offscreen frames: f32, so the frame is linear and unrounded.
-const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// How a GPU renderer lights the model.
+#[derive(Clone, Debug, Default)]
+pub struct GpuLighting {
+    /// Strength of the directional light (1: the sample's own light; 0: off).
+    pub sun: f32,
+    /// Light from every direction (see [`crate::render::ambient`]).
+    pub environment: Option<Environment>,
+    /// Shadow-map shadows for the directional light, and per-vertex light-cell shadows
+    /// (traced on the CPU, as `render` does) for the environment.
+    pub shadows: bool,
+}
+
+impl GpuLighting {
+    /// The directional light alone, with shadows.
+    pub fn sun() -> GpuLighting {
+        GpuLighting { sun: 1.0, environment: None, shadows: true }
+    }
+}
+
+/// The scene on one GPU: its passes, formats and the environment's shading.
+pub struct GpuScene {
+    pub gpu: Gpu,
+    pub passes: Passes,
+    pub target: TargetFormat,
+    pub scene: Scene,
+    pub material: Material,
+    pub lighting: GpuLighting,
+    ambient: Option<AmbientCache>,
+    /// The scene's BVH, for the environment's shadows and for which vertices a camera shows.
+    tracer: Option<Tracer>,
+}
+
+impl GpuScene {
+    /// Uploads `scene` and `material` to `gpu`, for frames of `colour` format (multisampled
+    /// where the adapter can); the environment's cell shadows are traced now. Any wgpu error
+    /// is one line.
+    pub fn new(
+        gpu: Gpu,
+        (scene, material): (Scene, Material),
+        colour: Option<wgpu::TextureFormat>,
+        lighting: GpuLighting,
+    ) -> Result<GpuScene> {
+        let formats = gpu.formats()?;
+        let colour = colour.unwrap_or(formats.target);
+        let target =
+            TargetFormat { colour, depth: formats.depth, samples: gpu.msaa_samples(colour, formats.depth) };
+        let rects = lighting.environment.as_ref().map(|_| ambient::patch_rects(&scene));
+        let passes = gpu.scoped("draw this scene", || {
+            Passes::new(
+                &gpu.device,
+                &gpu.queue,
+                (&scene, &material),
+                target,
+                formats.images,
+                rects.as_deref(),
+            )
+        })?;
+        let ambient =
+            lighting.environment.clone().map(|e| AmbientCache::new(&scene, &material, e, lighting.shadows));
+        let tracer = (ambient.is_some() && lighting.shadows).then(|| Tracer::new(&scene.mesh));
+        Ok(GpuScene { gpu, passes, target, scene, material, lighting, ambient, tracer })
+    }
+
+    /// Uploads what `shot` needs (blends, uniforms, and the environment's shading for
+    /// `environment_camera` if that moved: the shot's camera, or in a window the camera
+    /// where a drag began, since the environment costs more to shade than a frame).
+    pub fn prepare(&mut self, shot: &Shot, mode: Mode, display: Display, environment_camera: &Camera) {
+        let sun = if display == Display::Btf { self.lighting.sun } else { 1.0 };
+        let blends = if sun > 0.0 {
+            display_blends(&self.scene, &self.material, shot, display)
+        } else {
+            vec![Blend16::DARK; self.scene.mesh.vertex_count()]
+        };
+        let environment = display == Display::Btf && self.ambient.is_some();
+        if let (true, Some(cache)) = (environment, self.ambient.as_mut()) {
+            let scene = (&self.scene, &self.material);
+            let (ambient, fresh) = cache.for_camera(scene, environment_camera, self.tracer.as_ref());
+            if fresh {
+                self.passes.upload_ambient(&self.gpu.queue, ambient);
+            }
+        }
+        let settings = FrameSettings {
+            mode,
+            false_colour: display == Display::TextonFalseColour,
+            shadows: self.lighting.shadows,
+            sun,
+            environment,
+        };
+        self.passes.prepare(&self.gpu.queue, shot, &blends, settings);
+    }
+}
 
 /// Renders frames offscreen and reads them back.
 pub struct GpuRenderer {
-    scene: Scene,
-    material: Material,
-    gpu: Gpu,
-    passes: Passes,
+    inner: GpuScene,
     target: wgpu::Texture,
-    depth: wgpu::TextureView,
+    targets: FrameTargets,
     staging: wgpu::Buffer,
     size: (u32, u32),
-    /// Shadow-map shadows (on by default).
-    pub shadows: bool,
 }
 
 impl GpuRenderer {
     /// A renderer of `size` (width, height) pixels on the first adapter wgpu finds, with no
-    /// window. Fails with one line if there is none.
-    pub fn headless(scene: Scene, material: Material, size: (u32, u32)) -> Result<GpuRenderer> {
+    /// window. Fails with one line if there is none, or if it cannot render this scene.
+    pub fn headless(
+        scene: Scene,
+        material: Material,
+        size: (u32, u32),
+        lighting: GpuLighting,
+    ) -> Result<GpuRenderer> {
         let gpu = Gpu::headless()?;
         let max = gpu.device.limits().max_texture_dimension_2d;
         if size.0 > max || size.1 > max {
@@ -79,29 +172,37 @@ impl GpuRenderer {
                 gpu.name()
             )));
         }
-        let passes = Passes::new(&gpu.device, &gpu.queue, &scene, &material, TARGET_FORMAT)?;
-        let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("frame"),
-            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: TARGET_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let depth = passes::depth_texture(&gpu.device, size, false);
-        let staging = readback::staging_buffer(&gpu.device, size);
-        Ok(GpuRenderer { scene, material, gpu, passes, target, depth, staging, size, shadows: true })
+        let inner = GpuScene::new(gpu, (scene, material), None, lighting)?;
+        let (gpu, format) = (&inner.gpu, inner.target);
+        let (target, targets, staging) = gpu.scoped("make its frame buffers", || {
+            let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("frame"),
+                size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: format.colour,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let targets = FrameTargets::new(&gpu.device, size, format);
+            Ok((target, targets, readback::staging_buffer(&gpu.device, size, format.colour)))
+        })?;
+        Ok(GpuRenderer { inner, target, targets, staging, size })
     }
 
     /// The adapter's name and backend.
     pub fn adapter_name(&self) -> String {
-        self.gpu.name()
+        self.inner.gpu.name()
+    }
+
+    /// The colour format and samples per pixel frames are drawn with.
+    pub fn target_format(&self) -> TargetFormat {
+        self.inner.target
     }
 
     pub fn scene(&self) -> &Scene {
-        &self.scene
+        &self.inner.scene
     }
 
     /// Renders `shot` (whose camera must be of this renderer's size) into a linear RGBA frame.
@@ -113,18 +214,15 @@ impl GpuRenderer {
                 size.0, size.1, self.size.0, self.size.1
             )));
         }
-        let blends = display_blends(&self.scene, &self.material, shot, display);
-        let settings = FrameSettings {
-            mode,
-            false_colour: display == Display::TextonFalseColour,
-            shadows: self.shadows,
-        };
-        self.passes.prepare(&self.gpu.queue, shot, &blends, settings);
-        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        self.inner.prepare(shot, mode, display, &shot.camera);
+        let gpu = &self.inner.gpu;
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let target = self.target.create_view(&Default::default());
-        self.passes.encode(&mut encoder, &target, &self.depth, wgpu::Color::TRANSPARENT);
+        self.inner.passes.encode(&mut encoder, &target, &self.targets, wgpu::Color::TRANSPARENT);
         readback::copy(&mut encoder, &self.target, &self.staging);
-        self.gpu.queue.submit([encoder.finish()]);
-        readback::read(&self.gpu.device, &self.staging, self.size)
+        gpu.queue.submit([encoder.finish()]);
+        let frame = readback::read(&gpu.device, &self.staging, self.size, self.inner.target.colour);
+        gpu.check()?;
+        frame
     }
 }

@@ -2,7 +2,8 @@
 //! blends, uniforms), the shadow map, bind groups, and the per-frame uploads.
 
 use super::atlas::{self, AtlasLayout};
-use super::pipeline::{self, DEPTH_FORMAT};
+use super::pipeline::{self, TargetFormat};
+use crate::render::ambient::{Ambient, TexelRect};
 use crate::render::camera::{Camera, Projection};
 use crate::render::{Blend16, Material, Mode, Scene, Shot};
 use crate::{Error, Result};
@@ -44,15 +45,49 @@ struct Uniforms {
     flags: [u32; 4],
     atlas: [u32; 4],
     params: [f32; 4],
+    lighting: [f32; 4],
 }
 
 /// What a frame shows besides the shot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameSettings {
     pub mode: Mode,
     /// Colour each texton label instead of fetching texels.
     pub false_colour: bool,
     pub shadows: bool,
+    /// Strength of the directional light (0: off).
+    pub sun: f32,
+    /// Add the environment's share uploaded by [`Passes::upload_ambient`].
+    pub environment: bool,
+}
+
+/// Where the camera passes draw: a multisampled colour texture resolved into the caller's
+/// target (when multisampling), and the depth buffer.
+pub struct FrameTargets {
+    multisampled: Option<wgpu::TextureView>,
+    depth: wgpu::TextureView,
+}
+
+impl FrameTargets {
+    /// Targets of `size` pixels for `format`.
+    pub fn new(device: &wgpu::Device, size: (u32, u32), format: TargetFormat) -> FrameTargets {
+        let multisampled = (format.samples > 1).then(|| {
+            device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("multisampled colour"),
+                    size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: format.samples,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: format.colour,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default())
+        });
+        let depth = depth_texture(device, size, format.depth, false, format.samples);
+        FrameTargets { multisampled, depth }
+    }
 }
 
 /// Default side of the square shadow map, in texels.
@@ -80,6 +115,8 @@ pub struct Passes {
     /// index buffer of the depth-only passes.
     corners: wgpu::Buffer,
     corner_count: u32,
+    /// Per vertex, its environment patch: x, y, width | height << 16, offset.
+    patch_texels: wgpu::Buffer,
     layout: AtlasLayout,
     tileable: bool,
     texel: f32,
@@ -88,14 +125,16 @@ pub struct Passes {
 }
 
 impl Passes {
-    /// Uploads the scene and the material and builds the pipelines for a colour target of
-    /// `format`.
+    /// Uploads the scene and the material (its images as `image_format`) and builds the
+    /// pipelines for `target`; with `patches` (the environment's patch of every vertex,
+    /// [`crate::render::ambient::patch_rects`]), room for the environment's texels.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        scene: &Scene,
-        material: &Material,
-        format: wgpu::TextureFormat,
+        (scene, material): (&Scene, &Material),
+        target: TargetFormat,
+        image_format: wgpu::TextureFormat,
+        patches: Option<&[TexelRect]>,
     ) -> Result<Passes> {
         let limits = device.limits();
         let layout = AtlasLayout::new(
@@ -112,11 +151,20 @@ impl Passes {
                 limits.max_storage_buffer_binding_size
             )));
         }
-        let images =
-            atlas::upload(device, queue, material, &layout).create_view(&wgpu::TextureViewDescriptor {
+        let texel_count = patches.map_or(0, |p| p.iter().map(TexelRect::area).sum::<usize>());
+        let texel_bytes = texel_count as u64 * 12;
+        if texel_bytes > limits.max_storage_buffer_binding_size {
+            return Err(Error::invalid(format!(
+                "the environment needs {texel_bytes} bytes of texels but this GPU binds at most {}",
+                limits.max_storage_buffer_binding_size
+            )));
+        }
+        let images = atlas::upload(device, queue, material, &layout, image_format).create_view(
+            &wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2Array),
                 ..Default::default()
-            });
+            },
+        );
         let places: Vec<[i32; 4]> = (0..material.len() as u32)
             .map(|i| {
                 let (layer, x, y) = layout.place(i);
@@ -145,7 +193,15 @@ impl Passes {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let shadow_map = depth_texture(device, (SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), true);
+        let shadow_map = depth_texture(device, (SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), target.depth, true, 1);
+        let headers = patch_headers(patches.unwrap_or(&[]));
+        let patch_headers = storage(device, "environment patches", bytemuck::cast_slice(&headers));
+        let patch_texels = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("environment texels"),
+            size: texel_bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("shadow comparison"),
             mag_filter: wgpu::FilterMode::Linear,
@@ -187,6 +243,8 @@ impl Passes {
                 },
                 wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::Sampler(&sampler) },
                 buffer_entry(7, &places),
+                buffer_entry(8, &patch_headers),
+                buffer_entry(9, &patch_texels),
             ],
         });
         let shadow_bindings = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -196,9 +254,9 @@ impl Passes {
         });
         let (lo, hi) = scene.mesh.bounds();
         Ok(Passes {
-            shadow_pipeline: pipeline::shadow(device, &shadow_layout),
-            depth_pipeline: pipeline::depth_prepass(device, &surface_layout),
-            surface_pipeline: pipeline::surface(device, &surface_layout, &colours_read_layout, format),
+            shadow_pipeline: pipeline::shadow(device, &shadow_layout, target.depth),
+            depth_pipeline: pipeline::depth_prepass(device, &surface_layout, target),
+            surface_pipeline: pipeline::surface(device, &surface_layout, &colours_read_layout, target),
             colour_pipeline: pipeline::vertex_colours(device, &surface_layout, &colours_write_layout),
             shadow_bindings,
             surface_bindings,
@@ -211,11 +269,20 @@ impl Passes {
             shadow_map,
             corner_count: corners.len() as u32,
             corners: corner_buffer,
+            patch_texels,
             layout,
             tileable: material.tileable,
             texel: scene.texel,
             ball: (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-6)),
         })
+    }
+
+    /// Uploads the environment's texels (for the patches given to [`Passes::new`]).
+    pub fn upload_ambient(&self, queue: &wgpu::Queue, ambient: &Ambient) {
+        let texels: Vec<f32> = ambient.texels().iter().flat_map(|t| t.to_array()).collect();
+        if !texels.is_empty() {
+            queue.write_buffer(&self.patch_texels, 0, bytemuck::cast_slice(&texels));
+        }
     }
 
     /// Writes this frame's blends (one per vertex) and uniforms.
@@ -246,6 +313,7 @@ impl Passes {
             ],
             atlas: [l.width, l.height, l.tiles_x, l.per_layer],
             params: [self.texel, 2.0 * radius / SHADOW_MAP_SIZE as f32, 1.0 / SHADOW_MAP_SIZE as f32, 0.0],
+            lighting: [settings.sun, settings.environment as u32 as f32, 0.0, 0.0],
         }
     }
 
@@ -265,15 +333,20 @@ impl Passes {
         }
     }
 
-    /// Records the shadow pass, the camera's depth pre-pass into `depth` and the surface pass
-    /// into `target` (cleared to `clear`).
+    /// Records the shadow pass, the camera's depth pre-pass and the surface pass into
+    /// `target` (cleared to `clear`; drawn through `targets`' multisampled texture if any).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         target: &wgpu::TextureView,
-        depth: &wgpu::TextureView,
+        targets: &FrameTargets,
         clear: wgpu::Color,
     ) {
+        let depth = &targets.depth;
+        let (view, resolve_target) = match &targets.multisampled {
+            Some(m) => (m, Some(target)),
+            None => (target, None),
+        };
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("shadow pass"),
@@ -314,10 +387,18 @@ impl Passes {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("surface pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
+                view,
                 depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+                resolve_target,
+                // the multisampled texture is only needed until it is resolved
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: if resolve_target.is_some() {
+                        wgpu::StoreOp::Discard
+                    } else {
+                        wgpu::StoreOp::Store
+                    },
+                },
             })],
             // the pre-pass's depths, read only: nothing after this pass needs them
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
@@ -355,8 +436,8 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
 }
 
 fn buffer(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    // An empty binding is invalid; a mesh always has triangles, but stay safe.
-    let bytes = if bytes.is_empty() { &[0u8; 4][..] } else { bytes };
+    // An empty binding is invalid (and an array binding needs one element, up to 16 bytes).
+    let bytes = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytes,
@@ -376,8 +457,28 @@ fn depth_attachment(view: &wgpu::TextureView) -> wgpu::RenderPassDepthStencilAtt
     }
 }
 
-/// A depth texture of `size`; `sampled` for the shadow map, which the surface pass reads.
-pub fn depth_texture(device: &wgpu::Device, (width, height): (u32, u32), sampled: bool) -> wgpu::TextureView {
+/// Per vertex, where its environment patch lies: x, y, width | height << 16, offset.
+fn patch_headers(rects: &[TexelRect]) -> Vec<[i32; 4]> {
+    let mut offset = 0;
+    rects
+        .iter()
+        .map(|r| {
+            let header = [r.x, r.y, (r.width | r.height << 16) as i32, offset as i32];
+            offset += r.area();
+            header
+        })
+        .collect()
+}
+
+/// A depth texture of `size` and `format`; `sampled` for the shadow map, which the surface
+/// pass reads.
+pub fn depth_texture(
+    device: &wgpu::Device,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    sampled: bool,
+    samples: u32,
+) -> wgpu::TextureView {
     let mut usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
     if sampled {
         usage |= wgpu::TextureUsages::TEXTURE_BINDING;
@@ -387,9 +488,9 @@ pub fn depth_texture(device: &wgpu::Device, (width, height): (u32, u32), sampled
             label: Some("depth"),
             size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             mip_level_count: 1,
-            sample_count: 1,
+            sample_count: samples,
             dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
+            format,
             usage,
             view_formats: &[],
         })

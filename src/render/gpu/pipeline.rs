@@ -1,8 +1,14 @@
 //! The render pipelines (depth-only shadow pass from the light; depth pre-pass and surface
 //! pass from the camera) and the bind group layouts they use.
 
-/// Depth format of the shadow map and of the camera's depth buffer.
-pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// What the camera passes draw into: the colour and depth formats and the samples per
+/// pixel (4 with multisampling, resolved into the colour target).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TargetFormat {
+    pub colour: wgpu::TextureFormat,
+    pub depth: wgpu::TextureFormat,
+    pub samples: u32,
+}
 
 /// The layout of `surface.wgsl`'s group 0 (`shadow.wgsl` uses its first two bindings).
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
@@ -46,6 +52,8 @@ pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
             ),
             entry(6, B::Sampler(wgpu::SamplerBindingType::Comparison)),
             entry(7, storage),
+            entry(8, storage),
+            entry(9, storage),
         ],
     })
 }
@@ -133,13 +141,18 @@ pub fn vertex_colours(
 
 /// Depth from the light; both faces cast shadows (like the CPU's shadow rays), and the
 /// slope-scaled bias keeps lit surfaces from shadowing themselves.
-pub fn shadow(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+pub fn shadow(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    depth: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("shadow.wgsl"),
         source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/shadow.wgsl").into()),
     });
     let bias = wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 };
-    depth_only(device, bindings, (&module, "vs_shadow"), "shadow pass", bias)
+    let target = TargetFormat { colour: wgpu::TextureFormat::Rgba8Unorm, depth, samples: 1 };
+    depth_only(device, bindings, (&module, "vs_shadow"), "shadow pass", bias, target)
 }
 
 /// A pipeline that writes depth only (less-than test), from vertex entry point `entry`.
@@ -149,6 +162,7 @@ fn depth_only(
     (module, entry): (&wgpu::ShaderModule, &str),
     label: &str,
     bias: wgpu::DepthBiasState,
+    target: TargetFormat,
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
@@ -161,13 +175,13 @@ fn depth_only(
         },
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
+            format: target.depth,
             depth_write_enabled: Some(true),
             depth_compare: Some(wgpu::CompareFunction::Less),
             stencil: Default::default(),
             bias,
         }),
-        multisample: Default::default(),
+        multisample: wgpu::MultisampleState { count: target.samples, ..Default::default() },
         fragment: None,
         multiview_mask: None,
         cache: None,
@@ -184,20 +198,24 @@ fn surface_module(device: &wgpu::Device) -> wgpu::ShaderModule {
 /// The camera's depth only (`vs_depth`, the same clip position as `vs_surface`), so that the
 /// surface pass shades each pixel once: on a software rasteriser the fragment shader's 48
 /// bilinear lookups are most of a frame, and overlapping fragments multiplied them.
-pub fn depth_prepass(device: &wgpu::Device, bindings: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+pub fn depth_prepass(
+    device: &wgpu::Device,
+    bindings: &wgpu::BindGroupLayout,
+    target: TargetFormat,
+) -> wgpu::RenderPipeline {
     let module = surface_module(device);
-    depth_only(device, bindings, (&module, "vs_depth"), "depth pre-pass", Default::default())
+    depth_only(device, bindings, (&module, "vs_depth"), "depth pre-pass", Default::default(), target)
 }
 
-/// The surface pass into a colour target of `format` (Rgba32Float offscreen, the
-/// window's format in the viewer); no culling, the shader blackens back faces as the CPU does.
+/// The surface pass into `target` (a float format offscreen, the window's format in the
+/// viewer); no culling, the shader blackens back faces as the CPU does.
 /// It runs after [`depth_prepass`] and shades only the fragments at the depth that pass kept
 /// (`Equal`, no depth writes; `@invariant` positions make the depths identical).
 pub fn surface(
     device: &wgpu::Device,
     bindings: &wgpu::BindGroupLayout,
     colours: &wgpu::BindGroupLayout,
-    format: wgpu::TextureFormat,
+    target: TargetFormat,
 ) -> wgpu::RenderPipeline {
     let module = surface_module(device);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -211,19 +229,19 @@ pub fn surface(
         },
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
+            format: target.depth,
             depth_write_enabled: Some(false),
             depth_compare: Some(wgpu::CompareFunction::Equal),
             stencil: Default::default(),
             bias: Default::default(),
         }),
-        multisample: Default::default(),
+        multisample: wgpu::MultisampleState { count: target.samples, ..Default::default() },
         fragment: Some(wgpu::FragmentState {
             module: &module,
             entry_point: Some("fs_surface"),
             compilation_options: Default::default(),
             targets: &[Some(wgpu::ColorTargetState {
-                format,
+                format: target.colour,
                 blend: None,
                 write_mask: wgpu::ColorWrites::ALL,
             })],
