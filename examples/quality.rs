@@ -10,7 +10,10 @@
 //! ```
 //!
 //! btfsynth runs as its release binary (`target/release/btfsynth`), the peer as given; each
-//! run is timed through `wait4`, so CPU time and peak memory are the child's own.
+//! run is timed through `wait4` in a small re-executed copy of this program (Linux counts
+//! the RSS of the process that forked a child into the child's peak, so the benchmark's
+//! own pictures would otherwise inflate every figure), so CPU time and peak memory are the
+//! measured program's own.
 
 use btfsynth::analysis::images::SampleImages;
 use btfsynth::eval::report::evaluate_plane;
@@ -53,6 +56,10 @@ struct Options {
 }
 
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.get(1).map(String::as_str) == Some(MEASURE) {
+        std::process::exit(measure_child(&args[2..]));
+    }
     if let Err(e) = run(options()) {
         eprintln!("error: {e}");
         std::process::exit(1);
@@ -251,24 +258,58 @@ fn peer_row(
 
 /// Runs `command`, returning whether it succeeded and its wall time, CPU time (user +
 /// system) and peak resident memory.
+/// The first argument that makes this program the measuring middleman (see [`timed`]).
+const MEASURE: &str = "--measure-child";
+
+/// Runs `command` through a fresh copy of this program, which runs it, waits for it and
+/// writes its CPU seconds and peak RSS to a file: a direct child of this (large) process
+/// would report this process's size as its peak.
 fn timed(command: &mut Command) -> Result<(bool, Cost)> {
+    let report = tempfile::NamedTempFile::new().map_err(|e| e.to_string())?;
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let started = std::time::Instant::now();
-    let child =
-        command.stdout(std::process::Stdio::null()).spawn().map_err(|e| format!("{command:?}: {e}"))?;
+    let status = Command::new(exe)
+        .arg(MEASURE)
+        .arg(report.path())
+        .arg(command.get_program())
+        .args(command.get_args())
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(|e| format!("{command:?}: {e}"))?;
+    let text = std::fs::read_to_string(report.path()).map_err(|e| e.to_string())?;
+    let mut figures = text.split_whitespace().map(|f| f.parse::<f64>().unwrap_or(f64::NAN));
+    let (cpu, peak_kb) = (figures.next().unwrap_or(f64::NAN), figures.next().unwrap_or(f64::NAN));
+    let cost = Cost { wall: started.elapsed().as_secs_f64(), cpu, peak_mb: peak_kb / 1024.0 };
+    Ok((status.success(), cost))
+}
+
+/// `MEASURE REPORT PROGRAM ARGS…`: runs the program, writes "cpu_seconds peak_kb" to REPORT
+/// and exits with its status.
+fn measure_child(args: &[String]) -> i32 {
+    let [report, program, rest @ ..] = args else {
+        return 2;
+    };
+    let Ok(child) = Command::new(program).args(rest).spawn() else {
+        eprintln!("error: cannot run {program}");
+        return 127;
+    };
     let mut status = 0;
+    // SAFETY: an all-zero rusage is valid; wait4 writes it and `status` for our own child.
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: waits for our own child; `status` and `usage` are valid for writing.
     let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
     if pid < 0 {
-        return Err(format!("{command:?}: wait4 failed"));
+        return 1;
     }
     let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
-    let cost = Cost {
-        wall: started.elapsed().as_secs_f64(),
-        cpu: seconds(usage.ru_utime) + seconds(usage.ru_stime),
-        peak_mb: usage.ru_maxrss as f64 / 1024.0,
-    };
-    Ok((libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0, cost))
+    let cpu = seconds(usage.ru_utime) + seconds(usage.ru_stime);
+    if std::fs::write(report, format!("{cpu} {}", usage.ru_maxrss)).is_err() {
+        return 1;
+    }
+    if libc::WIFEXITED(status) {
+        libc::WEXITSTATUS(status)
+    } else {
+        1
+    }
 }
 
 fn load(path: &Path) -> Result<Picture> {
