@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 const GOLDEN: &[(&str, u64, u64)] = &[
     ("appearance", 0x1613480722bf59cd, 0xfbcaf7b4d2a4eaf8),
     ("tong2002", 0x3af21d6038a3cc39, 0x51a76ee213269e44),
+    ("turk2001", 0x16833bdc6c76b34d, 0x75d1a1806bb44f5b),
 ];
 
 fn s(p: &Path) -> &str {
@@ -99,4 +100,44 @@ fn every_preset_gives_its_golden_output() {
         }
     }
     assert!(wrong.is_empty(), "outputs differ from the golden ones:\n{}", wrong.join("\n"));
+}
+
+/// Every output records the whole recipe, not only its name.
+#[test]
+fn a_plane_records_its_whole_recipe() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    for preset in btfsynth::synth::Preset::all() {
+        let out = dir.path().join(preset.name);
+        run_ok(&["-q", "synth", s(&analysis), "--plane", "32x32", "--preset", preset.name, "-o", s(&out)]);
+        let (_, _, _, manifest) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let recorded = &manifest["params"]["recipe"];
+        assert_eq!(*recorded, preset.to_json(), "{}: {manifest}", preset.name);
+        assert!(recorded["coarsest"]["passes"][0]["order"].is_string(), "{recorded}");
+    }
+}
+
+/// `--list-presets` prints one line per preset naming its paper, and needs no other input.
+#[test]
+fn list_presets_names_each_preset_and_its_paper() {
+    let r = btfsynth(&["synth", "--list-presets"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = String::from_utf8(r.stdout).unwrap();
+    let presets = btfsynth::synth::Preset::all();
+    assert_eq!(out.lines().count(), presets.len(), "{out}");
+    for (line, preset) in out.lines().zip(&presets) {
+        assert!(line.starts_with(preset.name) && line.contains(preset.paper), "{line}");
+    }
+    assert!(out.contains("Turk") && out.contains("Tong"), "{out}");
+}
+
+/// An unknown preset is a usage error that names the available ones.
+#[test]
+fn an_unknown_preset_is_refused_with_the_list() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    let out = dir.path().join("plane");
+    let r = btfsynth(&["synth", s(&analysis), "--plane", "16x16", "--preset", "wei2000", "-o", s(&out)]);
+    common::assert_usage_error(&r, "turk2001");
+    assert!(!out.exists());
 }
