@@ -91,22 +91,23 @@ fn masked<'a>(slots: &'a [Slot], mask: Mask, template: usize, scratch: &'a mut V
         Mask::Off => &[],
         Mask::Half => {
             let r = template / 2;
+            let centre = r * template + r;
+            let upstream = |i: usize| i % template <= r && i != centre;
             scratch.clear();
-            scratch.extend(
-                slots.iter().enumerate().map(|(i, &s)| if i % template < r { s } else { Slot::NONE }),
-            );
+            scratch.extend(slots.iter().enumerate().map(|(i, &s)| if upstream(i) { s } else { Slot::NONE }));
             scratch
         }
     }
 }
 
-/// The forward shifts under `mask`: with [`Mask::Half`], only those upstream (x < 0).
+/// The forward shifts under `mask`: with [`Mask::Half`], only those upstream or level
+/// (x ≤ 0; the pass's visited mask then drops those not visited yet).
 fn masked_shifts<'a>(shifts: &'a [Shift], mask: Mask, scratch: &'a mut Vec<Shift>) -> &'a [Shift] {
     if mask != Mask::Half {
         return shifts;
     }
     scratch.clear();
-    scratch.extend(shifts.iter().filter(|s| s.1[0] < -0.5));
+    scratch.extend(shifts.iter().filter(|s| s.1[0] < 0.5));
     scratch
 }
 
@@ -126,7 +127,7 @@ pub(crate) fn pass<M: Metric>(
     let radius = level.template / 2;
     let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, radius));
     let mut coherence = Coherence::new(sample);
-    let mut known = (plan.mask == Mask::Visited).then(|| vec![false; level.vertices]);
+    let mut known = matches!(plan.mask, Mask::Visited | Mask::Half).then(|| vec![false; level.vertices]);
     let (mut own, mut up) = (M::Query::default(), M::Query::default());
     let (mut slots, mut parent_slots, mut shifts) = (Vec::new(), Vec::new(), Vec::new());
     let (mut masked_slots, mut vertex_shifts) = (Vec::new(), Vec::new());
@@ -154,20 +155,28 @@ pub(crate) fn pass<M: Metric>(
             }
             None => &coherence.out,
         };
-        let mut best = (f32::INFINITY, state.uv[v]);
         let current = state.uv[v];
-        for &q in set {
+        let score = |q: u32, bound: f32| -> f32 {
             let (x, y) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
             let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + plan.coherence_bias };
             let factor = usage.factor(q, current) * fresh;
-            let bound = best.0 / factor;
+            let bound = bound / factor;
             let mut d = metric.cost(&own, x, y, bound);
             if let (Some(p), true) = (parent, d < bound) {
                 d += p.metric.cost(&up, x / 2, y / 2, bound - d);
             }
-            let d = d * factor;
+            d * factor
+        };
+        let mut best = (f32::INFINITY, current);
+        // An extrapolating pass sees only the parent level, on which the four texels of a
+        // parent texel tie: it keeps the inherited texel unless another is strictly better.
+        if plan.mask == Mask::Off {
+            best.0 = score((current[1] as usize * sample.width + current[0] as usize) as u32, f32::INFINITY);
+        }
+        for &q in set {
+            let d = score(q, best.0);
             if d < best.0 {
-                best = (d, [x as i32, y as i32]);
+                best = (d, [(q as usize % sample.width) as i32, (q as usize / sample.width) as i32]);
             }
         }
         if best.0.is_finite() {
@@ -302,6 +311,35 @@ pub(crate) mod tests {
         }
     }
 
+    /// A metric that records what a pass lets it read: every vertex whose state a template
+    /// would use must have been visited before the vertex being matched.
+    struct Spy<'a> {
+        order: &'a [u32],
+        rank: &'a [usize],
+        next: std::cell::Cell<usize>,
+        reads: std::cell::Cell<usize>,
+    }
+
+    impl Metric for Spy<'_> {
+        type Query = ();
+        fn prepare(&self, slots: &[Slot], _: &State, known: Option<&[bool]>, _: &mut ()) {
+            let v = self.order[self.next.get()] as usize;
+            self.next.set(self.next.get() + 1);
+            for (_, parts, count) in crate::synth::metric::known_parts(slots, known) {
+                for &(u, _) in &parts[..count] {
+                    assert!(self.rank[u as usize] < self.rank[v], "vertex {v} reads vertex {u}");
+                    self.reads.set(self.reads.get() + 1);
+                }
+            }
+        }
+        fn cost(&self, _: &(), _: i64, _: i64, _: f32) -> f32 {
+            0.0
+        }
+        fn texel_distance(&self, _: [i32; 2], _: [i32; 2]) -> f32 {
+            0.0
+        }
+    }
+
     /// Turk's half square H(n, 0), in sweep order, reads only vertices visited before:
     /// its template pixels and its forward shifts alike.
     #[test]
@@ -313,21 +351,30 @@ pub(crate) mod tests {
         let order = visit_order(level, VisitOrder::Sweep, Some(&sweep[0]), &mut rng);
         let mut rank = vec![0usize; level.vertices];
         order.iter().enumerate().for_each(|(i, &v)| rank[v as usize] = i);
-        let (mut slots, mut scratch, mut shifts, mut shift_scratch) = (vec![], vec![], vec![], vec![]);
-        let mut read = 0;
+        let sample = periodic_sample(4);
+        let mut state = crate::synth::start::random_state(level, &sample, 3, &mut rng);
+        let spy = Spy { order: &order, rank: &rank, next: 0.into(), reads: 0.into() };
+        let plan = PassPlan {
+            search: Search::KCoherence { k: 4 },
+            select: Select::Argmin,
+            coherence_bias: 0.0,
+            mask: Mask::Half,
+        };
+        pass(level, &mut state, &sample, &spy, None, &plan, &order, &mut rng);
+        // Away from the upstream edge, a half square reads three columns and the part of the
+        // middle one above the vertex: 24 of its 49 pixels.
+        assert!(spy.reads.get() > level.vertices * 12, "{} pixels read", spy.reads.get());
+        // Forward shifts come from the same side (the visited mask drops the middle column's
+        // vertices not visited yet, as it does for pixels).
+        let (mut shifts, mut scratch) = (vec![], vec![]);
         for v in 0..level.vertices {
-            let half = masked(level.slots_of(v, &mut slots), Mask::Half, 7, &mut scratch);
-            for slot in half.iter().filter(|s| s.weights[0] > 0.0) {
-                assert!(rank[slot.vertices[0] as usize] < rank[v], "vertex {v} reads {:?}", slot.vertices);
-                read += 1;
-            }
-            for &(u, _) in masked_shifts(level.shifts_of(v, &mut shifts), Mask::Half, &mut shift_scratch) {
-                assert!(rank[u as usize] < rank[v], "vertex {v} shifts from {u}");
+            for &(u, o) in masked_shifts(level.shifts_of(v, &mut shifts), Mask::Half, &mut scratch) {
+                assert!(o[0] <= 0.0, "vertex {v} shifts from downstream vertex {u}");
+                assert!(o[0] == 0.0 || rank[u as usize] < rank[v], "vertex {v} shifts from {u}");
             }
         }
-        // Away from the upstream edge, a half square is three of the seven columns.
-        assert!(read > level.vertices * 21 / 2, "{read} pixels read");
         // A full square does read vertices not visited yet.
+        let mut slots = vec![];
         let full = level.slots_of(21 * 6 + 10, &mut slots);
         assert!(full.iter().any(|s| rank[s.vertices[0] as usize] > rank[21 * 6 + 10]));
     }
