@@ -27,7 +27,7 @@ mkdir -p "$out"
 materials=()
 for photo in gimp-Stone_stone33.png sh3d-pebbles.jpg; do
   if [ -f "$shared/$photo" ]; then
-    name=${photo%.*}; name=${name#*-}
+    name=${photo%.*}; name=${name##*[-_]}
     [ -d "$out/$name.analysis" ] ||
       $bin -q analyze "$shared/$photo" --crop 0,0,128,128 --force -o "$out/$name.analysis"
     materials+=("$name")
@@ -83,7 +83,10 @@ for i, p in enumerate(presets):
         frames = sorted(glob.glob(os.path.join(out, f"render-{p}-{m}", "*.png")))
         frames = [f for f in frames if "contact" not in os.path.basename(f)] or frames
         if frames:
-            sheet.paste(Image.open(frames[0]).convert("RGB").resize((cell, cell)), (label + j * cell, 24 + i * cell))
+            image = Image.open(frames[0]).convert("RGB")
+            w, h = image.size  # the model fills the middle of the frame
+            image = image.crop((w // 8, h // 8, w - w // 8, h - h // 8))
+            sheet.paste(image.resize((cell, cell)), (label + j * cell, 24 + i * cell))
 sheet.save(os.path.join(out, "contact.png"))
 print("wrote", os.path.join(out, "contact.png"))
 EOF

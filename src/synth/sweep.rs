@@ -6,8 +6,9 @@
 //! being how far downstream v lies from w along the texture direction; a vertex takes the
 //! mean of its assigned neighbours' beliefs and becomes assigned. The anchor's component is
 //! assigned breadth-first from it (so every vertex has an assigned neighbour when reached),
-//! then relaxed; finer levels start from twice their parent's distance plus their offset and
-//! are relaxed a few times (coarse to fine, as the paper does).
+//! once, not relaxed (see `COARSE_RELAXATIONS`); finer levels start from twice their
+//! parent's distance plus their offset and are relaxed a few times (coarse to fine, as the
+//! paper does).
 //!
 //! Δ is read from the level's own neighbourhoods: a patch vertex at offset o (in texels,
 //! x along the texture direction) believes s(v) = s(w) − o.x. This measures along v's
@@ -21,8 +22,12 @@ use std::collections::VecDeque;
 
 /// Neighbours closer than this many texels (a grid's 8, a mesh's one-ring) take part.
 const STEP: f32 = 1.5;
-/// Relaxations of the coarsest level after its breadth-first assignment.
-const COARSE_RELAXATIONS: usize = 32;
+/// Relaxations of the coarsest level after its breadth-first assignment: none. Where the
+/// field is not a gradient (around its singular points on a closed surface) relaxation
+/// spreads the disagreement over the whole level: on the bunny with an axis field, 84% of
+/// near neighbour pairs are in sweep order after the assignment, 77% after 32 rounds, 45%
+/// after 2000.
+const COARSE_RELAXATIONS: usize = 0;
 /// Relaxations of every finer level after it inherits.
 const FINE_RELAXATIONS: usize = 4;
 
@@ -141,6 +146,36 @@ impl Neighbours {
 mod tests {
     use super::*;
     use crate::synth::target::grid_levels;
+
+    /// On a mesh, the sweep distance grows along the texture direction: between near
+    /// neighbours clearly apart along it, the downstream one has the larger distance.
+    #[test]
+    fn on_the_bunny_the_sweep_distance_grows_along_the_field() {
+        use crate::mesh::field::{frames, Orientation};
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+        let mesh = crate::mesh::load(std::path::Path::new(path)).unwrap();
+        let frames = frames(&mesh, &Orientation::parse("axis:0,1,0").unwrap(), 0).unwrap();
+        let p = mesh.positions();
+        let edges = crate::mesh::topology::edges(&mesh);
+        let texel = edges.iter().map(|&[a, b]| p[a as usize].distance(p[b as usize])).sum::<f32>()
+            / edges.len() as f32;
+        let level = crate::synth::surface::surface_level(&mesh, &frames, texel, 5).unwrap();
+        let s = &sweep_distances(std::slice::from_ref(&level), 3)[0];
+        let (mut agree, mut pairs, mut scratch) = (0, 0, Vec::new());
+        for v in 0..level.vertices {
+            for &(u, o) in level.shifts_of(v, &mut scratch) {
+                if o[0].hypot(o[1]) <= STEP && o[0].abs() > 0.5 {
+                    pairs += 1;
+                    agree += usize::from((s[u as usize] > s[v]) == (o[0] > 0.0));
+                }
+            }
+        }
+        assert!(pairs > level.vertices, "{pairs} pairs");
+        // A field on a closed surface has singular points (the axis' poles, the ears' tips)
+        // around which no sweep agrees with it: measured 84%; a reversed sign gives 16%,
+        // an unrelated order 50%.
+        assert!(agree as f32 > 0.75 * pairs as f32, "{agree} of {pairs} pairs in sweep order");
+    }
 
     /// On a plane the texture direction is +x everywhere: the sweep distance is x up to a
     /// constant, on every level.
