@@ -13,9 +13,15 @@ fn analysis(dir: &std::path::Path) -> std::path::PathBuf {
 fn surface_synthesis_is_deterministic_and_described_by_info() {
     let dir = tempfile::tempdir().unwrap();
     let a = analysis(dir.path());
+    for preset in btfsynth::synth::Preset::all() {
+        deterministic_and_described(dir.path(), &a, preset.name);
+    }
+}
+
+fn deterministic_and_described(dir: &std::path::Path, a: &std::path::Path, preset: &str) {
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
     let run = |name: &str, seed: &str| {
-        let out = dir.path().join(name);
+        let out = dir.join(format!("{preset}-{name}"));
         let r = btfsynth(&[
             "-q",
             "synth",
@@ -27,6 +33,8 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
             seed,
             "--orient",
             "axis:0,1,0",
+            "--preset",
+            preset,
             "-o",
             out.to_str().unwrap(),
         ]);
@@ -40,7 +48,10 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
     assert_eq!(json["kind"], "surface");
     assert_eq!(json["analysis"], "analysis", "recorded relative to the surface map");
-    let absolute = std::fs::canonicalize(&a).unwrap();
+    let recipe = &json["params"]["recipe"];
+    assert_eq!(recipe["name"], preset, "the whole recipe is recorded: {recipe}");
+    assert!(!recipe["finer"]["passes"].as_array().unwrap().is_empty(), "{recipe}");
+    let absolute = std::fs::canonicalize(a).unwrap();
     assert_eq!(json["analysis_absolute"], absolute.to_str().unwrap());
     let analysis_info: serde_json::Value =
         serde_json::from_slice(&btfsynth(&["info", a.to_str().unwrap(), "--json"]).stdout).unwrap();
@@ -52,10 +63,10 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
     let q: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
     assert_eq!(q["kind"], "surface");
-    assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.5, "{q}");
+    assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.5, "{preset}: {q}");
     assert!(q["textons"]["energy"].as_f64().unwrap().is_finite());
     assert!(q["coords"]["coherence"].as_f64().unwrap() >= 1.0, "{q}");
-    assert!(q["coords"]["collapse"].as_f64().unwrap() <= 0.05, "{q}");
+    assert!(q["coords"]["collapse"].as_f64().unwrap() <= 0.05, "{preset}: {q}");
     assert!(q["probes"][0]["patch_energy"].as_f64().unwrap().is_finite(), "{q}");
 }
 

@@ -84,24 +84,28 @@ fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::P
 fn same_seed_same_bytes_and_other_seeds_differ() {
     let dir = tempfile::tempdir().unwrap();
     let a = common::analyze_gravel_crop(dir.path(), "a");
-    let run = |name: &str, seed: &str| {
-        let out = dir.path().join(name);
-        let r = btfsynth(&[
-            "-q",
-            "synth",
-            a.to_str().unwrap(),
-            "--plane",
-            "40x40",
-            "--seed",
-            seed,
-            "-o",
-            out.to_str().unwrap(),
-        ]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap())
-    };
-    assert_eq!(run("one", "3"), run("two", "3"));
-    assert_ne!(run("three", "3").1, run("four", "4").1);
+    for preset in btfsynth::synth::Preset::all() {
+        let run = |name: &str, seed: &str| {
+            let out = dir.path().join(format!("{}-{name}", preset.name));
+            let r = btfsynth(&[
+                "-q",
+                "synth",
+                a.to_str().unwrap(),
+                "--plane",
+                "40x40",
+                "--preset",
+                preset.name,
+                "--seed",
+                seed,
+                "-o",
+                out.to_str().unwrap(),
+            ]);
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap())
+        };
+        assert_eq!(run("one", "3"), run("two", "3"), "{}", preset.name);
+        assert_ne!(run("three", "3").1, run("four", "4").1, "{}", preset.name);
+    }
 }
 
 #[test]

@@ -28,9 +28,10 @@ btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/"
 )]
 pub struct SynthArgs {
     /// The analysis directory (from `btfsynth analyze`).
-    analysis: PathBuf,
+    #[arg(required_unless_present = "list_presets")]
+    analysis: Option<PathBuf>,
     /// The mesh to cover (OBJ, OFF, PLY); omit with --plane.
-    #[arg(required_unless_present = "plane", conflicts_with = "plane")]
+    #[arg(required_unless_present_any = ["plane", "list_presets"], conflicts_with = "plane")]
     mesh: Option<PathBuf>,
     /// Synthesize on a regular W×H grid instead of a mesh (2D texture synthesis).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
@@ -49,8 +50,8 @@ pub struct SynthArgs {
     #[arg(long, requires = "plane")]
     tileable_output: bool,
     /// Output: a binary PLY for a mesh, a directory for --plane.
-    #[arg(short, long, value_name = "OUT")]
-    output: PathBuf,
+    #[arg(short, long, value_name = "OUT", required_unless_present = "list_presets")]
+    output: Option<PathBuf>,
     /// Sample texels per model unit (the texture's size on the surface). One of --scale,
     /// --texels-across and --vertices sets the size; they exclude each other.
     #[arg(long, group = "density", value_parser = super::positive_number)]
@@ -80,10 +81,15 @@ pub struct SynthArgs {
     /// Candidate search.
     #[arg(long, value_enum, default_value_t = SearchKind::Kcoherence)]
     search: SearchKind,
-    /// The engine's parts, named after their paper: appearance (default: Tong's engine
-    /// matched on appearance vectors) or tong2002 (Tong's texton distances through Γ).
+    /// The engine's recipe, named after its paper: appearance (default: Tong's engine
+    /// matched on appearance vectors), tong2002 (Tong's texton distances through Γ) or
+    /// turk2001 (Turk's sweep, half-square start, extrapolate and refine passes). The whole
+    /// recipe is recorded in the output. See --list-presets.
     #[arg(long, default_value = "appearance")]
     preset: String,
+    /// Print one line per preset (its name and paper) and exit.
+    #[arg(long)]
+    list_presets: bool,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -105,15 +111,24 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
 }
 
 pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
+    if args.list_presets {
+        for p in Preset::all() {
+            println!("{:<12} {}", p.name, p.paper);
+        }
+        return Ok(());
+    }
     // clap drops `requires = "plane"` once MESH (which conflicts with --plane) is given.
     if args.mesh.is_some() && (args.tileable_output || !args.views.is_empty() || !args.lights.is_empty()) {
         return Err(usage("--tileable-output, --view and --light need --plane"));
     }
-    check_target(&args.output, args.force)?;
+    let (Some(analysis), Some(output)) = (args.analysis.clone(), args.output.clone()) else {
+        return Err(usage("give an ANALYSIS and -o OUT"));
+    };
+    check_target(&output, args.force)?;
     if let Some(report) = &args.report {
         check_target(report, true)?;
     }
-    let manifest = crate::analysis::store::read_manifest(&args.analysis)?;
+    let manifest = crate::analysis::store::read_manifest(&analysis)?;
     let levels = args.levels.unwrap_or(manifest.levels.len());
     if levels > manifest.levels.len() {
         return Err(usage(format!("--levels {levels}: the analysis has {} level(s)", manifest.levels.len())));
@@ -125,7 +140,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if k > manifest.k {
         return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
     }
-    let sample = Sample::open(&args.analysis, levels)?;
+    let sample = Sample::open(&analysis, levels)?;
     let search = match args.search {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
@@ -133,7 +148,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     let preset = Preset::by_name(&args.preset).map_err(usage)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let mut params_json = serde_json::json!({
-        "preset": params.preset.name, "search": format!("{:?}", args.search).to_lowercase(), "k": k,
+        "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
     });
     let reports = match (&args.mesh, args.plane) {
@@ -141,13 +156,22 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
             let density = density(&args, manifest.width);
             params_json["orient"] = args.orient.clone().into();
             params_json["density"] = density.to_string().into();
-            surface(&args, mesh, &sample, &params, density, levels, &mut params_json, bars)?
+            surface(
+                &args,
+                (&analysis, &output),
+                mesh,
+                &sample,
+                &params,
+                density,
+                levels,
+                &mut params_json,
+                bars,
+            )?
         }
         (None, Some(size)) => {
             let result = synthesize_plane(&sample, size, args.tileable_output, &params, bars)?;
-            let probes = shown_probes(&args)?;
-            let written =
-                write_plane(&result, &args.analysis, &probes, params_json.clone(), &args.output, args.force)?;
+            let probes = shown_probes(&args, &analysis)?;
+            let written = write_plane(&result, &analysis, &probes, params_json.clone(), &output, args.force)?;
             print_reports(&result.reports);
             eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
             result.reports
@@ -162,7 +186,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
 }
 
 /// The view/light pairs asked for with --view/--light (empty: the defaults).
-fn shown_probes(args: &SynthArgs) -> Result<Vec<crate::analysis::images::Probe>> {
+fn shown_probes(args: &SynthArgs, analysis: &Path) -> Result<Vec<crate::analysis::images::Probe>> {
     if args.views.is_empty() && args.lights.is_empty() {
         return Ok(Vec::new());
     }
@@ -170,7 +194,7 @@ fn shown_probes(args: &SynthArgs) -> Result<Vec<crate::analysis::images::Probe>>
     let lights = if args.lights.is_empty() { vec![(0.0, 0.0)] } else { args.lights.clone() };
     let pairs: Vec<([f32; 2], [f32; 2])> =
         views.iter().flat_map(|&(vt, vp)| lights.iter().map(move |&(lt, lp)| ([vt, vp], [lt, lp]))).collect();
-    Ok(crate::analysis::images::SampleImages::open(&args.analysis)?.probes_for(&pairs))
+    Ok(crate::analysis::images::SampleImages::open(analysis)?.probes_for(&pairs))
 }
 
 fn density(args: &SynthArgs, sample_width: usize) -> Density {
@@ -185,6 +209,7 @@ fn density(args: &SynthArgs, sample_width: usize) -> Density {
 #[allow(clippy::too_many_arguments)]
 fn surface(
     args: &SynthArgs,
+    (analysis, output): (&Path, &Path),
     mesh_path: &Path,
     sample: &Sample,
     params: &SynthParams,
@@ -216,7 +241,7 @@ fn surface(
     let (state, reports) = synthesize_surface(&pyramid, sample, params, bars)?;
     print_reports(&reports);
     // Timings go to the report only, after the PLY is written.
-    write_surface_ply(&args.output, &pyramid.levels[0], &state, (&args.analysis, mesh_path), params_json)?;
+    write_surface_ply(output, &pyramid.levels[0], &state, (analysis, mesh_path), params_json)?;
     params_json["prepare_seconds"] = serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
     params_json["mesh_levels"] = pyramid
         .levels
@@ -225,7 +250,7 @@ fn surface(
         .collect();
     eprintln!(
         "wrote {} ({} vertices) in {:.1} s",
-        args.output.display(),
+        output.display(),
         pyramid.levels[0].mesh.vertex_count(),
         started.elapsed().as_secs_f64()
     );

@@ -3,8 +3,9 @@
 
 use super::candidates::{full_candidates, Coherence, Search};
 use super::metric::Metric;
+use super::recipe::Mask;
 use super::sample::SampleLevel;
-use super::target::TargetLevel;
+use super::target::{Shift, Slot, TargetLevel};
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
@@ -22,6 +23,8 @@ pub enum VisitOrder {
     Random,
     /// Vertex index order (scanline order on a plane).
     Sequential,
+    /// Increasing sweep distance along the texture direction (Turk §4.2, [`super::sweep`]).
+    Sweep,
 }
 
 /// What one pass found.
@@ -54,9 +57,10 @@ pub struct PassPlan {
     /// Distances of candidates that start a new copy (not a patch vertex's forward shift)
     /// are multiplied by 1 + this (Ashikhmin's and Hertzmann's coherence preference).
     pub coherence_bias: f32,
-    /// Only vertices already synthesized in this pass count, in distances and as sources of
-    /// candidates; a vertex with none starts from a random texel.
-    pub causal: bool,
+    /// Which template pixels count, in distances and as sources of candidates. With
+    /// [`Mask::Visited`] and [`Mask::Half`], a vertex with no source of candidates starts from
+    /// a random texel.
+    pub mask: Mask,
 }
 
 /// The coarser level while refining: its state and metric, for two-level neighbourhoods
@@ -64,6 +68,47 @@ pub struct PassPlan {
 pub(crate) struct Parent<'a, M> {
     pub state: &'a State,
     pub metric: M,
+    /// Where the parent neighbourhood comes from: the level's narrow parent templates
+    /// (`None`), or this coarser level's own templates at the parent vertex (Turk's F(n, 1)).
+    pub wide: Option<&'a TargetLevel>,
+}
+
+impl<M> Parent<'_, M> {
+    /// The parent-neighbourhood slots of `level`'s vertex v.
+    fn slots_of<'s>(&'s self, level: &'s TargetLevel, v: usize, scratch: &'s mut Vec<Slot>) -> &'s [Slot] {
+        match (self.wide, level.parents.get(v)) {
+            (Some(coarse), Some(link)) => coarse.slots_of(link.vertex as usize, scratch),
+            _ => level.parent_slots_of(v, scratch),
+        }
+    }
+}
+
+/// The template `slots` (side `template`) under `mask`: pixels outside it become
+/// [`Slot::NONE`], which no metric compares.
+fn masked<'a>(slots: &'a [Slot], mask: Mask, template: usize, scratch: &'a mut Vec<Slot>) -> &'a [Slot] {
+    match mask {
+        Mask::Full | Mask::Visited => slots,
+        Mask::Off => &[],
+        Mask::Half => {
+            let r = template / 2;
+            let centre = r * template + r;
+            let upstream = |i: usize| i % template <= r && i != centre;
+            scratch.clear();
+            scratch.extend(slots.iter().enumerate().map(|(i, &s)| if upstream(i) { s } else { Slot::NONE }));
+            scratch
+        }
+    }
+}
+
+/// The forward shifts under `mask`: with [`Mask::Half`], only those upstream or level
+/// (x ≤ 0; the pass's visited mask then drops those not visited yet).
+fn masked_shifts<'a>(shifts: &'a [Shift], mask: Mask, scratch: &'a mut Vec<Shift>) -> &'a [Shift] {
+    if mask != Mask::Half {
+        return shifts;
+    }
+    scratch.clear();
+    scratch.extend(shifts.iter().filter(|s| s.1[0] < 0.5));
+    scratch
 }
 
 /// One pass over `level`: every vertex takes the candidate whose neighbourhood best matches
@@ -82,27 +127,25 @@ pub(crate) fn pass<M: Metric>(
     let radius = level.template / 2;
     let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, radius));
     let mut coherence = Coherence::new(sample);
-    let mut known = plan.causal.then(|| vec![false; level.vertices]);
+    let mut known = matches!(plan.mask, Mask::Visited | Mask::Half).then(|| vec![false; level.vertices]);
     let (mut own, mut up) = (M::Query::default(), M::Query::default());
     let (mut slots, mut parent_slots, mut shifts) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut masked_slots, mut vertex_shifts) = (Vec::new(), Vec::new());
     let (mut best_sum, mut candidate_sum) = (0.0f64, 0usize);
     let mut usage = Usage::new(sample, state, radius, plan.select);
     for &v in order {
         let v = v as usize;
-        metric.prepare(level.slots_of(v, &mut slots), state, known.as_deref(), &mut own);
+        let own_slots = masked(level.slots_of(v, &mut slots), plan.mask, level.template, &mut masked_slots);
+        metric.prepare(own_slots, state, known.as_deref(), &mut own);
         if let Some(p) = parent {
-            p.metric.prepare(level.parent_slots_of(v, &mut parent_slots), p.state, None, &mut up);
+            p.metric.prepare(p.slots_of(level, v, &mut parent_slots), p.state, None, &mut up);
         }
+        let shift_list = masked_shifts(level.shifts_of(v, &mut shifts), plan.mask, &mut vertex_shifts);
         let seed;
         let k = if let Search::KCoherence { k } = plan.search { k } else { 1 };
         // A full search gathers the forward shifts too, to know which texels continue a copy.
-        let gathered = coherence.gather(
-            level.shifts_of(v, &mut shifts),
-            known.as_deref(),
-            state,
-            sample,
-            (k, radius, parent.is_some()),
-        );
+        let gathered =
+            coherence.gather(shift_list, known.as_deref(), state, sample, (k, radius, parent.is_some()));
         let set: &[u32] = match &full {
             Some(all) => all,
             None if gathered.is_empty() => {
@@ -112,20 +155,28 @@ pub(crate) fn pass<M: Metric>(
             }
             None => &coherence.out,
         };
-        let mut best = (f32::INFINITY, state.uv[v]);
         let current = state.uv[v];
-        for &q in set {
+        let score = |q: u32, bound: f32| -> f32 {
             let (x, y) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
             let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + plan.coherence_bias };
             let factor = usage.factor(q, current) * fresh;
-            let bound = best.0 / factor;
+            let bound = bound / factor;
             let mut d = metric.cost(&own, x, y, bound);
             if let (Some(p), true) = (parent, d < bound) {
                 d += p.metric.cost(&up, x / 2, y / 2, bound - d);
             }
-            let d = d * factor;
+            d * factor
+        };
+        let mut best = (f32::INFINITY, current);
+        // An extrapolating pass sees only the parent level, on which the four texels of a
+        // parent texel tie: it keeps the inherited texel unless another is strictly better.
+        if plan.mask == Mask::Off {
+            best.0 = score((current[1] as usize * sample.width + current[0] as usize) as u32, f32::INFINITY);
+        }
+        for &q in set {
+            let d = score(q, best.0);
             if d < best.0 {
-                best = (d, [x as i32, y as i32]);
+                best = (d, [(q as usize % sample.width) as i32, (q as usize / sample.width) as i32]);
             }
         }
         if best.0.is_finite() {
@@ -187,11 +238,19 @@ impl Usage {
     }
 }
 
-/// The visiting order of one pass over `level`.
-pub fn visit_order(level: &TargetLevel, order: VisitOrder, rng: &mut ChaCha8Rng) -> Vec<u32> {
+/// The visiting order of one pass over `level`; [`VisitOrder::Sweep`] needs the level's
+/// sweep distances (without them it falls back to index order).
+pub fn visit_order(
+    level: &TargetLevel,
+    order: VisitOrder,
+    sweep: Option<&[f32]>,
+    rng: &mut ChaCha8Rng,
+) -> Vec<u32> {
     let mut ids: Vec<u32> = (0..level.vertices as u32).collect();
-    if order == VisitOrder::Random {
-        ids.shuffle(rng);
+    match (order, sweep) {
+        (VisitOrder::Random, _) => ids.shuffle(rng),
+        (VisitOrder::Sweep, Some(s)) => ids.sort_by(|&a, &b| s[a as usize].total_cmp(&s[b as usize])),
+        _ => {}
     }
     ids
 }
@@ -252,6 +311,74 @@ pub(crate) mod tests {
         }
     }
 
+    /// A metric that records what a pass lets it read: every vertex whose state a template
+    /// would use must have been visited before the vertex being matched.
+    struct Spy<'a> {
+        order: &'a [u32],
+        rank: &'a [usize],
+        next: std::cell::Cell<usize>,
+        reads: std::cell::Cell<usize>,
+    }
+
+    impl Metric for Spy<'_> {
+        type Query = ();
+        fn prepare(&self, slots: &[Slot], _: &State, known: Option<&[bool]>, _: &mut ()) {
+            let v = self.order[self.next.get()] as usize;
+            self.next.set(self.next.get() + 1);
+            for (_, parts, count) in crate::synth::metric::known_parts(slots, known) {
+                for &(u, _) in &parts[..count] {
+                    assert!(self.rank[u as usize] < self.rank[v], "vertex {v} reads vertex {u}");
+                    self.reads.set(self.reads.get() + 1);
+                }
+            }
+        }
+        fn cost(&self, _: &(), _: i64, _: i64, _: f32) -> f32 {
+            0.0
+        }
+        fn texel_distance(&self, _: [i32; 2], _: [i32; 2]) -> f32 {
+            0.0
+        }
+    }
+
+    /// Turk's half square H(n, 0), in sweep order, reads only vertices visited before:
+    /// its template pixels and its forward shifts alike.
+    #[test]
+    fn a_half_square_reads_only_vertices_visited_before_in_sweep_order() {
+        let targets = grid_levels(21, 13, 2, 7, 3);
+        let sweep = crate::synth::sweep::sweep_distances(&targets, 5);
+        let level = &targets[0];
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let order = visit_order(level, VisitOrder::Sweep, Some(&sweep[0]), &mut rng);
+        let mut rank = vec![0usize; level.vertices];
+        order.iter().enumerate().for_each(|(i, &v)| rank[v as usize] = i);
+        let sample = periodic_sample(4);
+        let mut state = crate::synth::start::random_state(level, &sample, 3, &mut rng);
+        let spy = Spy { order: &order, rank: &rank, next: 0.into(), reads: 0.into() };
+        let plan = PassPlan {
+            search: Search::KCoherence { k: 4 },
+            select: Select::Argmin,
+            coherence_bias: 0.0,
+            mask: Mask::Half,
+        };
+        pass(level, &mut state, &sample, &spy, None, &plan, &order, &mut rng);
+        // Away from the upstream edge, a half square reads three columns and the part of the
+        // middle one above the vertex: 24 of its 49 pixels.
+        assert!(spy.reads.get() > level.vertices * 12, "{} pixels read", spy.reads.get());
+        // Forward shifts come from the same side (the visited mask drops the middle column's
+        // vertices not visited yet, as it does for pixels).
+        let (mut shifts, mut scratch) = (vec![], vec![]);
+        for v in 0..level.vertices {
+            for &(u, o) in masked_shifts(level.shifts_of(v, &mut shifts), Mask::Half, &mut scratch) {
+                assert!(o[0] <= 0.0, "vertex {v} shifts from downstream vertex {u}");
+                assert!(o[0] == 0.0 || rank[u as usize] < rank[v], "vertex {v} shifts from {u}");
+            }
+        }
+        // A full square does read vertices not visited yet.
+        let mut slots = vec![];
+        let full = level.slots_of(21 * 6 + 10, &mut slots);
+        assert!(full.iter().any(|s| rank[s.vertices[0] as usize] > rank[21 * 6 + 10]));
+    }
+
     #[test]
     fn an_exact_copy_is_a_fixed_point_of_a_full_search_pass() {
         let sample = periodic_sample(4);
@@ -264,7 +391,7 @@ pub(crate) mod tests {
         let order: Vec<u32> = (0..32 * 32).collect();
         let metric = GammaMetric { sample: &sample, template: 5 };
         let plan =
-            PassPlan { search: Search::Full, select: Select::Argmin, coherence_bias: 0.0, causal: false };
+            PassPlan { search: Search::Full, select: Select::Argmin, coherence_bias: 0.0, mask: Mask::Full };
         pass(level, &mut state, &sample, &metric, None, &plan, &order, &mut rng);
         let interior_changed = (0..32 * 32)
             .filter(|&v| {

@@ -32,7 +32,7 @@ pub(crate) trait Metric {
 
 /// The template slots' vertices and weights with unknown vertices removed: `(slot index,
 /// [(vertex, weight)], count)`; slots outside the patch keep `OUTSIDE` as their vertex.
-fn known_parts<'a>(
+pub(crate) fn known_parts<'a>(
     slots: &'a [Slot],
     known: Option<&'a [bool]>,
 ) -> impl Iterator<Item = (usize, [(u32, f32); 3], usize)> + 'a {

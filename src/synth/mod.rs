@@ -11,14 +11,17 @@ pub mod candidates;
 pub mod engine;
 pub(crate) mod metric;
 pub mod plane;
+pub mod recipe;
 pub mod sample;
 pub mod start;
 pub mod surface;
 pub mod surface_map;
+pub mod sweep;
 pub mod target;
 
 pub use candidates::Search;
 pub use engine::{Select, State, VisitOrder};
+pub use recipe::{Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start};
 pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
@@ -27,99 +30,9 @@ use engine::{pass, visit_order, Parent, PassPlan, PassStats};
 use metric::{AppearanceMetric, GammaMetric, Metric};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use recipe::pass_search;
 use std::time::{Duration, Instant};
 use target::TargetLevel;
-
-/// The neighbourhood distance a preset matches with.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub enum MetricKind {
-    /// Surface textons through Γ (Tong §5.1).
-    Gamma,
-    /// Appearance vectors by SSD (Lefebvre and Hoppe 2006); needs an analysis that stores
-    /// them.
-    Appearance,
-}
-
-/// How the coarsest level starts.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub enum Start {
-    /// Every vertex a random texel (Tong §5.1).
-    Random,
-    /// Random coherent patches of this radius, as a fraction of the coarsest sample level's
-    /// smaller side (see `start::patch_state`).
-    Patches { radius: f32 },
-}
-
-/// A named combination of the engine's parts.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Preset {
-    pub name: &'static str,
-    /// The paper the preset follows, for `--list-presets`.
-    pub paper: &'static str,
-    /// The neighbourhood distance.
-    pub metric: MetricKind,
-    /// How the coarsest level starts.
-    pub start: Start,
-    /// Full-neighbourhood passes on the coarsest level after the start.
-    pub coarse_passes: usize,
-    /// Passes on every finer level after it inherits from the coarser one.
-    pub fine_passes: usize,
-    /// Whether finer levels match two-level neighbourhoods with two-level kNN lists.
-    pub two_level: bool,
-    /// Order of every pass.
-    pub order: VisitOrder,
-    /// How a vertex picks among its candidates.
-    pub select: Select,
-    /// Preference for continuing a copy over starting a new one (see
-    /// [`engine::PassPlan::coherence_bias`]).
-    pub coherence_bias: f32,
-}
-
-impl Preset {
-    /// The default: Tong's engine matched on appearance vectors, from random patches, with
-    /// a preference for continuing copies and choosy selection. Every departure from the paper
-    /// is measured on eleven 128² photographs → 512² against Embark's texture-synthesis
-    /// (README, Synthesis quality).
-    pub fn appearance() -> Self {
-        Preset {
-            name: "appearance",
-            paper: "Tong et al. 2002, matched on appearance vectors (Lefebvre and Hoppe 2006)",
-            metric: MetricKind::Appearance,
-            start: Start::Patches { radius: 0.35 },
-            coarse_passes: 4,
-            fine_passes: 2,
-            two_level: true,
-            order: VisitOrder::Random,
-            select: Select::Choosy { strength: 0.3 },
-            coherence_bias: 0.5,
-        }
-    }
-
-    /// Tong et al. 2002: distances through Γ; every finer level inherits from the coarser
-    /// one and is refined with two-level neighbourhoods and lists. The coarsest level starts
-    /// from random patches rather than the paper's random texels (see [`Start::Patches`]).
-    pub fn tong2002() -> Self {
-        Preset {
-            name: "tong2002",
-            paper: "Tong, Zhang, Liu, Wang, Guo and Shum, SIGGRAPH 2002",
-            metric: MetricKind::Gamma,
-            ..Self::appearance()
-        }
-    }
-
-    /// Every preset, the default first.
-    pub fn all() -> Vec<Self> {
-        vec![Self::appearance(), Self::tong2002()]
-    }
-
-    /// Presets by name, for `--preset`.
-    pub fn by_name(name: &str) -> Result<Self> {
-        Self::all().into_iter().find(|p| p.name == name).ok_or_else(|| {
-            let names: Vec<&str> = Self::all().iter().map(|p| p.name).collect();
-            Error::invalid(format!("unknown preset '{name}': available: {}", names.join(", ")))
-        })
-    }
-}
 
 /// Parameters of one synthesis.
 #[derive(Clone, Debug)]
@@ -170,92 +83,149 @@ pub fn synthesize(
     if targets.is_empty() || targets.len() > sample.levels.len() {
         return Err(Error::invalid("synthesis needs one target level per sample level"));
     }
+    let preset = &params.preset;
+    if preset.coarsest.start == Start::Inherit {
+        return Err(Error::invalid(format!("preset '{}': the coarsest level cannot inherit", preset.name)));
+    }
+    let uses_appearance =
+        preset.coarsest.passes.iter().chain(&preset.finer.passes).any(|p| p.metric == MetricKind::Appearance);
+    if uses_appearance && sample.levels[..targets.len()].iter().any(|l| l.appearance.is_none()) {
+        return Err(Error::invalid(format!(
+            "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
+            preset.name
+        )));
+    }
     let levels = &sample.levels[..targets.len()];
-    match params.preset.metric {
-        MetricKind::Gamma => {
-            run(targets, levels, params, progress, |s, t| Ok(GammaMetric { sample: s, template: t }))
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+    let sweep = preset.sweeps().then(|| sweep::sweep_distances(targets, params.seed));
+    let coarsest = targets.len() - 1;
+    progress.start("synthesizing", preset.pass_count(targets.len()) as u64);
+    let r = params.neighborhood / 2;
+    let mut reports = Vec::new();
+    let mut state: Option<State> = None;
+    for l in (0..=coarsest).rev() {
+        let started = Instant::now();
+        let recipe = if l == coarsest { &preset.coarsest } else { &preset.finer };
+        let (target, level_sample) = (&targets[l], &levels[l]);
+        let coarse = state.take();
+        let mut current = match (recipe.start, &coarse) {
+            (Start::Inherit, Some(coarse)) => start::inherit(target, coarse, level_sample, r),
+            (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
+            (Start::Patches { radius }, _) => {
+                let patch = (radius * level_sample.width.min(level_sample.height) as f32).max(1.0);
+                let search = capped(
+                    recipe.passes.first().map_or(params.search, |p| pass_search(p, params.search)),
+                    level_sample,
+                );
+                let k = search.list_length(level_sample);
+                let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric);
+                patches(metric, target, level_sample, (r, patch, k), &mut rng)
+            }
+            (Start::Inherit, None) => unreachable!("checked above: the coarsest level does not inherit"),
+        };
+        let mut stats = PassStats::default();
+        for p in &recipe.passes {
+            let order = visit_order(target, p.order, sweep.as_ref().map(|s| s[l].as_slice()), &mut rng);
+            let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref() };
+            stats = run_pass(p, &level, &mut current, params, &order, &mut rng);
+            progress.advance(1);
         }
-        MetricKind::Appearance => run(targets, levels, params, progress, |s, t| {
-            let map = s.appearance.as_ref().ok_or_else(|| {
-                Error::invalid(format!(
-                    "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
-                    params.preset.name
-                ))
-            })?;
-            Ok(AppearanceMetric { map, template: t })
+        let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
+        reports.push(report(l, target, passes, started.elapsed(), stats));
+        state = Some(current);
+    }
+    progress.finish();
+    Ok((state.expect("at least one level"), reports))
+}
+
+/// What a pass on level `l` reads besides its own state.
+struct LevelInputs<'a> {
+    targets: &'a [TargetLevel],
+    levels: &'a [SampleLevel],
+    l: usize,
+    /// The coarser level's final state (none on the coarsest level).
+    coarse: Option<&'a State>,
+}
+
+/// Runs one pass, dispatching once on its metric so the candidate loop is monomorphised.
+fn run_pass(
+    p: &Pass,
+    inputs: &LevelInputs,
+    state: &mut State,
+    params: &SynthParams,
+    order: &[u32],
+    rng: &mut ChaCha8Rng,
+) -> PassStats {
+    match p.metric {
+        MetricKind::Gamma => {
+            run_pass_with(p, inputs, state, params, order, rng, |s, t| GammaMetric { sample: s, template: t })
+        }
+        MetricKind::Appearance => run_pass_with(p, inputs, state, params, order, rng, |s, t| {
+            AppearanceMetric { map: s.appearance.as_ref().expect("checked in synthesize"), template: t }
         }),
     }
 }
 
-/// The level schedule with one metric type throughout, so every pass is monomorphised.
-fn run<'a, M: Metric>(
-    targets: &[TargetLevel],
-    levels: &'a [SampleLevel],
+#[allow(clippy::too_many_arguments)]
+fn run_pass_with<'a, M: Metric>(
+    p: &Pass,
+    inputs: &LevelInputs<'a>,
+    state: &mut State,
     params: &SynthParams,
-    progress: &dyn Progress,
-    metric: impl Fn(&'a SampleLevel, usize) -> Result<M>,
-) -> Result<(State, Vec<LevelReport>)> {
-    let preset = &params.preset;
-    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
-    let coarsest = targets.len() - 1;
-    progress.start("synthesizing", (preset.coarse_passes + coarsest * preset.fine_passes) as u64);
-    let r = params.neighborhood / 2;
-    let mut reports = Vec::new();
-
-    let started = Instant::now();
-    let (target, level_sample) = (&targets[coarsest], &levels[coarsest]);
-    let own = metric(level_sample, target.template)?;
-    let mut state = match preset.start {
-        Start::Random => start::random_state(target, level_sample, r, &mut rng),
-        Start::Patches { radius } => {
-            let patch = (radius * level_sample.width.min(level_sample.height) as f32).max(1.0);
-            let k = search_for(params, level_sample).list_length(level_sample);
-            start::patch_state(target, level_sample, &own, (r, patch, k), &mut rng)
+    order: &[u32],
+    rng: &mut ChaCha8Rng,
+    metric: impl Fn(&'a SampleLevel, usize) -> M,
+) -> PassStats {
+    let (l, target, level_sample) = (inputs.l, &inputs.targets[inputs.l], &inputs.levels[inputs.l]);
+    let own = metric(level_sample, target.template);
+    let parent = match (p.parent, inputs.coarse) {
+        (ParentNeighbourhood::Narrow, Some(coarse)) => Some(Parent {
+            state: coarse,
+            metric: metric(&inputs.levels[l + 1], target.parent_template),
+            wide: None,
+        }),
+        (ParentNeighbourhood::Wide, Some(coarse)) => {
+            let coarser = &inputs.targets[l + 1];
+            Some(Parent {
+                state: coarse,
+                metric: metric(&inputs.levels[l + 1], coarser.template),
+                wide: Some(coarser),
+            })
         }
+        _ => None,
     };
     let plan = PassPlan {
-        search: search_for(params, level_sample),
-        causal: false,
-        select: preset.select,
-        coherence_bias: preset.coherence_bias,
+        search: capped(pass_search(p, params.search), level_sample),
+        mask: p.mask,
+        select: p.select,
+        coherence_bias: p.coherence_bias,
     };
-    let mut stats = PassStats::default();
-    for _ in 0..preset.coarse_passes {
-        let order = visit_order(target, preset.order, &mut rng);
-        stats = pass(target, &mut state, level_sample, &own, None, &plan, &order, &mut rng);
-        progress.advance(1);
-    }
-    reports.push(report(coarsest, target, preset.coarse_passes, started.elapsed(), stats));
+    pass(target, state, level_sample, &own, parent.as_ref(), &plan, order, rng)
+}
 
-    for l in (0..coarsest).rev() {
-        let started = Instant::now();
-        let (target, level_sample) = (&targets[l], &levels[l]);
-        let coarse = state;
-        state = start::inherit(target, &coarse, level_sample, r);
-        let own = metric(level_sample, target.template)?;
-        let parent = Parent { state: &coarse, metric: metric(&levels[l + 1], target.parent_template)? };
-        let parent = preset.two_level.then_some(&parent);
-        let plan = PassPlan {
-            search: search_for(params, level_sample),
-            causal: false,
-            select: preset.select,
-            coherence_bias: preset.coherence_bias,
-        };
-        let mut stats = PassStats::default();
-        for _ in 0..preset.fine_passes {
-            let order = visit_order(target, preset.order, &mut rng);
-            stats = pass(target, &mut state, level_sample, &own, parent, &plan, &order, &mut rng);
-            progress.advance(1);
+/// Random patches on `target`, their seams matched with the metric `kind`.
+fn patches(
+    kind: MetricKind,
+    target: &TargetLevel,
+    sample: &SampleLevel,
+    sizes: (usize, f32, usize),
+    rng: &mut ChaCha8Rng,
+) -> State {
+    let template = target.template;
+    match kind {
+        MetricKind::Gamma => {
+            start::patch_state(target, sample, &GammaMetric { sample, template }, sizes, rng)
         }
-        reports.push(report(l, target, 1 + preset.fine_passes, started.elapsed(), stats));
+        MetricKind::Appearance => {
+            let map = sample.appearance.as_ref().expect("checked in synthesize");
+            start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
+        }
     }
-    progress.finish();
-    Ok((state, reports))
 }
 
 /// The k-coherence k is capped by the lists the analysis stored.
-fn search_for(params: &SynthParams, sample: &SampleLevel) -> Search {
-    match params.search {
+fn capped(search: Search, sample: &SampleLevel) -> Search {
+    match search {
         Search::KCoherence { k } => Search::KCoherence { k: k.min(sample.k) },
         Search::Full => Search::Full,
     }

@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Every preset side by side (issue #11): each `synth --list-presets` preset on
+# data/bunny-1k8.obj remeshed to 40k vertices, with two photographs of ../shared/data/textures
+# (128² crops) and one generated BTF (64², 81 directions). Writes, under OUT:
+#   presets.md       one row per preset and material: seconds per stage (remesh, frames,
+#                    templates, synthesis per level) and every quality measure of `btfsynth eval`
+#   contact.png      rows: presets, columns: materials (rendered with `btfsynth render`)
+# Needs jq and python3 with Pillow (for the contact sheet).
+#   benches/presets.sh [--out DIR] [--vertices N]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=bench-out/presets
+vertices=40000
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --out) out=$2; shift 2 ;;
+    --vertices) vertices=$2; shift 2 ;;
+    *) echo "usage: benches/presets.sh [--out DIR] [--vertices N]" >&2; exit 2 ;;
+  esac
+done
+cargo build --release
+bin=target/release/btfsynth
+shared=../shared/data/textures
+mkdir -p "$out"
+
+# Materials: name and the stack it is analysed from.
+materials=()
+for photo in gimp-Stone_stone33.png sh3d-pebbles.jpg; do
+  if [ -f "$shared/$photo" ]; then
+    name=${photo%.*}; name=${name##*[-_]}
+    [ -d "$out/$name.analysis" ] ||
+      $bin -q analyze "$shared/$photo" --crop 0,0,128,128 --force -o "$out/$name.analysis"
+    materials+=("$name")
+  else
+    echo "skipping $photo: not in $shared" >&2
+  fi
+done
+if [ ! -d "$out/btf-pebbles.analysis" ]; then
+  $bin -q gen pebbles --size 64 --directions ubo81 --force -o "$out/btf-pebbles"
+  $bin -q analyze "$out/btf-pebbles" --force -o "$out/btf-pebbles.analysis"
+fi
+materials+=(btf-pebbles)
+
+presets=$($bin synth --list-presets | awk '{print $1}')
+table="$out/presets.md"
+{
+  echo "| preset | material | vertices | remesh s | frames s | templates s | synthesis s (coarsest → finest) | collapse | smear | copy | coherence | texton χ² | patch energy |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+} >"$table"
+for preset in $presets; do
+  for m in "${materials[@]}"; do
+    ply="$out/$preset-$m.ply"
+    $bin -q synth "$out/$m.analysis" data/bunny-1k8.obj --vertices "$vertices" --orient axis:0,1,0 \
+      --preset "$preset" --report "$out/$preset-$m.report.json" --force -o "$ply"
+    $bin eval "$out/$m.analysis" "$ply" --json >"$out/$preset-$m.eval.json"
+    $bin -q render "$ply" --size 320x320 --format png --force -o "$out/render-$preset-$m"
+    jq -r --arg p "$preset" --arg m "$m" --slurpfile q "$out/$preset-$m.eval.json" '
+      def f: . * 1000 | round / 1000;
+      [$p, $m, (.levels[-1].vertices | tostring),
+       (.params.prepare_seconds.remesh | f | tostring), (.params.prepare_seconds.frames | f | tostring),
+       (.params.prepare_seconds.templates | f | tostring),
+       ([.levels[].seconds | f | tostring] | join(" → ")),
+       ($q[0].coords.collapse | f | tostring), ($q[0].coords.smear | f | tostring),
+       ($q[0].coords.copy | f | tostring), ($q[0].coords.coherence | f | tostring),
+       ($q[0].textons.chi2 | f | tostring), ($q[0].probes[0].patch_energy * 10000 | round / 10000 | tostring)]
+      | "| " + join(" | ") + " |"' "$out/$preset-$m.report.json" >>"$table"
+  done
+done
+cat "$table"
+
+python3 - "$out" "${materials[*]}" $presets <<'EOF'
+import glob, os, sys
+from PIL import Image, ImageDraw
+out, materials, presets = sys.argv[1], sys.argv[2].split(), sys.argv[3:]
+cell, label = 320, 110
+sheet = Image.new("RGB", (label + cell * len(materials), 24 + cell * len(presets)), "white")
+draw = ImageDraw.Draw(sheet)
+for j, m in enumerate(materials):
+    draw.text((label + j * cell + 8, 6), m, fill="black")
+for i, p in enumerate(presets):
+    draw.text((8, 24 + i * cell + cell // 2), p, fill="black")
+    for j, m in enumerate(materials):
+        frames = sorted(glob.glob(os.path.join(out, f"render-{p}-{m}", "*.png")))
+        frames = [f for f in frames if "contact" not in os.path.basename(f)] or frames
+        if frames:
+            image = Image.open(frames[0]).convert("RGB")
+            w, h = image.size  # the model fills the middle of the frame
+            image = image.crop((w // 8, h // 8, w - w // 8, h - h // 8))
+            sheet.paste(image.resize((cell, cell)), (label + j * cell, 24 + i * cell))
+sheet.save(os.path.join(out, "contact.png"))
+print("wrote", os.path.join(out, "contact.png"))
+EOF

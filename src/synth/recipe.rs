@@ -1,0 +1,253 @@
+//! Presets as data: a [`Preset`] is a recipe naming, per level, how the level starts and
+//! which passes run over it, and per pass every part the engine is built from (visiting
+//! order, neighbourhood mask, parent neighbourhood, candidate source, metric, selection).
+//! `synth` records the whole recipe in its outputs, so a result says how it was made.
+
+use super::candidates::Search;
+use super::engine::{Select, VisitOrder};
+use crate::{Error, Result};
+
+/// The neighbourhood distance a pass matches with.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum MetricKind {
+    /// Surface textons through Γ (Tong §5.1).
+    Gamma,
+    /// Appearance vectors by SSD (Lefebvre and Hoppe 2006); needs an analysis that stores
+    /// them. For a photograph they are its colour neighbourhoods reduced by PCA, the
+    /// nearest the engine has to Turk's colour SSD.
+    Appearance,
+}
+
+/// How a level's map starts before its passes.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum Start {
+    /// Every vertex a random texel (Tong §5.1, Turk §5.2).
+    Random,
+    /// Random coherent patches of this radius, as a fraction of the coarsest sample level's
+    /// smaller side (see `start::patch_state`).
+    Patches { radius: f32 },
+    /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
+    /// only below the coarsest level.
+    Inherit,
+}
+
+/// Which of the level's own template pixels a pass compares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Mask {
+    /// Every pixel: Turk's full square F(n, 0), Tong's template.
+    Full,
+    /// Only pixels of vertices already visited in this pass (Wei and Levoy's causal
+    /// neighbourhood on any visiting order).
+    Visited,
+    /// Turk's half square H(n, 0): only the columns upstream of the vertex along the
+    /// texture direction (template x < 0), the side a sweep has already coloured; forward
+    /// shifts are taken from those columns too.
+    Half,
+    /// None of them: the pass matches on the parent neighbourhood alone (Turk's
+    /// extrapolating F(n, 1)).
+    Off,
+}
+
+/// The coarser level's neighbourhood joining a pass's distance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum ParentNeighbourhood {
+    /// No parent neighbourhood.
+    None,
+    /// The narrow parent template (`parent_size(n)`: 3 for n = 7), matched with two-level
+    /// kNN lists: Tong's two-level neighbourhood, Turk's F(3, 1).
+    Narrow,
+    /// The parent vertex's own full-size template on the coarser level: Turk's F(n, 1).
+    Wide,
+}
+
+/// Where a pass's candidates come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Candidates {
+    /// The search given to `synth` (`--search`: k-coherence by default, or full).
+    Search,
+    /// Every candidate texel, whatever `--search` says.
+    Full,
+}
+
+/// One pass over a level.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Pass {
+    /// Visiting order.
+    pub order: VisitOrder,
+    /// Which own-level template pixels are compared.
+    pub mask: Mask,
+    /// Whether and how the coarser level's neighbourhood joins the distance.
+    pub parent: ParentNeighbourhood,
+    /// Where candidates come from.
+    pub candidates: Candidates,
+    /// The neighbourhood distance.
+    pub metric: MetricKind,
+    /// How a vertex picks among its candidates.
+    pub select: Select,
+    /// Preference for continuing a copy over starting a new one (see
+    /// [`super::engine::PassPlan::coherence_bias`]).
+    pub coherence_bias: f32,
+}
+
+/// How one level is synthesized: its start, then its passes in order.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LevelRecipe {
+    pub start: Start,
+    pub passes: Vec<Pass>,
+}
+
+/// A named recipe: the coarsest level's, then the one every finer level follows.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Preset {
+    pub name: &'static str,
+    /// The paper the preset follows, for `--list-presets`.
+    pub paper: &'static str,
+    /// The coarsest level (its start may not be [`Start::Inherit`]).
+    pub coarsest: LevelRecipe,
+    /// Every finer level.
+    pub finer: LevelRecipe,
+}
+
+impl Preset {
+    /// The default: Tong's engine matched on appearance vectors, from random patches, with
+    /// a preference for continuing copies and choosy selection. Every departure from the paper
+    /// is measured on eleven 128² photographs → 512² against Embark's texture-synthesis
+    /// (README, Synthesis quality).
+    pub fn appearance() -> Self {
+        Self::tong_schedule(
+            "appearance",
+            "Tong et al. 2002, matched on appearance vectors (Lefebvre and Hoppe 2006)",
+            MetricKind::Appearance,
+        )
+    }
+
+    /// Tong et al. 2002: distances through Γ; every finer level inherits from the coarser
+    /// one and is refined with two-level neighbourhoods and lists. The coarsest level starts
+    /// from random patches rather than the paper's random texels (see [`Start::Patches`]).
+    pub fn tong2002() -> Self {
+        Self::tong_schedule(
+            "tong2002",
+            "Tong, Zhang, Liu, Wang, Guo and Shum, SIGGRAPH 2002",
+            MetricKind::Gamma,
+        )
+    }
+
+    /// Tong's schedule with `metric`: random patches and four full passes on the coarsest
+    /// level; inheritance and two two-level passes on every finer one; random order, choosy
+    /// selection and a coherence bias throughout.
+    fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
+        let pass = |parent| Pass {
+            order: VisitOrder::Random,
+            mask: Mask::Full,
+            parent,
+            candidates: Candidates::Search,
+            metric,
+            select: Select::Choosy { strength: 0.3 },
+            coherence_bias: 0.5,
+        };
+        Preset {
+            name,
+            paper,
+            coarsest: LevelRecipe {
+                start: Start::Patches { radius: 0.35 },
+                passes: vec![pass(ParentNeighbourhood::None); 4],
+            },
+            finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(ParentNeighbourhood::Narrow); 2] },
+        }
+    }
+
+    /// Turk 2001 §5.2: the coarsest level from random texels, one half-square H(n, 0)
+    /// pass in sweep order for the initial pattern; every finer level extrapolated with
+    /// F(n, 1) and refined with F(n, 0) + F(3, 1), all in sweep order. Departures (README):
+    /// appearance vectors for colours, the `--search` given (k-coherence by default; `--search
+    /// full` is the paper's), and choosy selection with a coherence bias.
+    pub fn turk2001() -> Self {
+        let pass = |mask, parent| Pass {
+            order: VisitOrder::Sweep,
+            mask,
+            parent,
+            candidates: Candidates::Search,
+            metric: MetricKind::Appearance,
+            select: Select::Choosy { strength: 0.3 },
+            coherence_bias: 0.5,
+        };
+        Preset {
+            name: "turk2001",
+            paper: "Turk, Texture Synthesis on Surfaces, SIGGRAPH 2001",
+            coarsest: LevelRecipe {
+                start: Start::Random,
+                passes: vec![pass(Mask::Half, ParentNeighbourhood::None)],
+            },
+            finer: LevelRecipe {
+                start: Start::Inherit,
+                passes: vec![
+                    pass(Mask::Off, ParentNeighbourhood::Wide),
+                    pass(Mask::Full, ParentNeighbourhood::Narrow),
+                ],
+            },
+        }
+    }
+
+    /// Every preset, the default first.
+    pub fn all() -> Vec<Self> {
+        vec![Self::appearance(), Self::tong2002(), Self::turk2001()]
+    }
+
+    /// Presets by name, for `--preset`.
+    pub fn by_name(name: &str) -> Result<Self> {
+        Self::all().into_iter().find(|p| p.name == name).ok_or_else(|| {
+            let names: Vec<&str> = Self::all().iter().map(|p| p.name).collect();
+            Error::invalid(format!("unknown preset '{name}': available: {}", names.join(", ")))
+        })
+    }
+
+    /// Every pass the recipe runs on `levels` levels.
+    pub fn pass_count(&self, levels: usize) -> usize {
+        self.coarsest.passes.len() + levels.saturating_sub(1) * self.finer.passes.len()
+    }
+
+    /// Whether any pass visits in sweep order (which needs sweep distances).
+    pub fn sweeps(&self) -> bool {
+        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.order == VisitOrder::Sweep)
+    }
+
+    /// The whole recipe as JSON, for the outputs.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+    }
+}
+
+/// The candidate search of a pass, given the one asked of `synth`.
+pub(crate) fn pass_search(pass: &Pass, asked: Search) -> Search {
+    match pass.candidates {
+        Candidates::Search => asked,
+        Candidates::Full => Search::Full,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recipes_serialize_whole() {
+        let json = Preset::turk2001().to_json();
+        assert_eq!(json["name"], "turk2001");
+        assert_eq!(json["coarsest"]["start"], "Random");
+        assert_eq!(json["coarsest"]["passes"][0]["mask"], "Half");
+        assert_eq!(json["finer"]["passes"][0]["parent"], "Wide");
+        assert_eq!(json["finer"]["passes"][1]["order"], "Sweep");
+        assert_eq!(Preset::appearance().to_json()["finer"]["passes"].as_array().unwrap().len(), 2);
+    }
+
+    #[test]
+    fn names_are_unique_and_found() {
+        let all = Preset::all();
+        for p in &all {
+            assert_eq!(Preset::by_name(p.name).unwrap(), *p);
+            assert_eq!(all.iter().filter(|q| q.name == p.name).count(), 1);
+            assert_ne!(p.coarsest.start, Start::Inherit, "{}: the coarsest level has no parent", p.name);
+        }
+        assert!(Preset::by_name("nope").is_err());
+    }
+}

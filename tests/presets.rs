@@ -1,0 +1,143 @@
+//! The engine's presets: golden outputs that pin each preset's behaviour (a change must be
+//! deliberate and explained in its commit), the recipe recorded in every output, and
+//! `--list-presets`.
+
+mod common;
+
+use common::btfsynth;
+use std::path::{Path, PathBuf};
+
+/// Per preset: FNV-1a 64 of the plane result (labels then coordinates) and of the surface
+/// map's vertex labels and coordinates, for the fixed inputs of [`golden_inputs`].
+const GOLDEN: &[(&str, u64, u64)] = &[
+    ("appearance", 0x1613480722bf59cd, 0xfbcaf7b4d2a4eaf8),
+    ("tong2002", 0x3af21d6038a3cc39, 0x51a76ee213269e44),
+    ("turk2001", 0x0b9139fc3dd25954, 0x34c37c7176616d4f),
+];
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn run_ok(args: &[&str]) {
+    let r = btfsynth(args);
+    assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+}
+
+/// FNV-1a 64, a hash whose value never changes with the Rust release.
+fn fnv(hash: &mut u64, bytes: &[u8]) {
+    for &b in bytes {
+        *hash ^= u64::from(b);
+        *hash = hash.wrapping_mul(0x100_0000_01b3);
+    }
+}
+
+fn state_hash(labels: &[u16], uv: &[[i32; 2]]) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325;
+    labels.iter().for_each(|l| fnv(&mut h, &l.to_le_bytes()));
+    uv.iter().for_each(|c| c.iter().for_each(|v| fnv(&mut h, &v.to_le_bytes())));
+    h
+}
+
+/// The analysis every golden output starts from: a 48² crop of the bundled gravel photo.
+fn golden_inputs(dir: &Path) -> PathBuf {
+    common::analyze_gravel_crop(dir, "analysis")
+}
+
+fn plane_hash(analysis: &Path, dir: &Path, preset: &str) -> u64 {
+    let out = dir.join(format!("plane-{preset}"));
+    run_ok(&[
+        "-q",
+        "synth",
+        s(analysis),
+        "--plane",
+        "64x64",
+        "--preset",
+        preset,
+        "--seed",
+        "7",
+        "-o",
+        s(&out),
+    ]);
+    let (_, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+    state_hash(&state.labels, &state.uv)
+}
+
+fn surface_hash(analysis: &Path, dir: &Path, preset: &str) -> u64 {
+    let out = dir.join(format!("{preset}.ply"));
+    run_ok(&[
+        "-q",
+        "synth",
+        s(analysis),
+        common::BUNNY,
+        "--vertices",
+        "3000",
+        "--orient",
+        "axis:0,1,0",
+        "--preset",
+        preset,
+        "--seed",
+        "7",
+        "-o",
+        s(&out),
+    ]);
+    let map = btfsynth::synth::surface_map::read_surface_ply(&out).unwrap();
+    state_hash(&map.state.labels, &map.state.uv)
+}
+
+/// Every preset's output is pinned: a refactoring of the engine must not change it.
+#[test]
+fn every_preset_gives_its_golden_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    let mut wrong = Vec::new();
+    for preset in btfsynth::synth::Preset::all() {
+        let name = preset.name.to_string();
+        let got = (plane_hash(&analysis, dir.path(), &name), surface_hash(&analysis, dir.path(), &name));
+        let want = GOLDEN.iter().find(|g| g.0 == name).map(|g| (g.1, g.2));
+        if want != Some(got) {
+            wrong.push(format!("(\"{name}\", {:#018x}, {:#018x}) (pinned: {want:x?})", got.0, got.1));
+        }
+    }
+    assert!(wrong.is_empty(), "outputs differ from the golden ones:\n{}", wrong.join("\n"));
+}
+
+/// Every output records the whole recipe, not only its name.
+#[test]
+fn a_plane_records_its_whole_recipe() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    for preset in btfsynth::synth::Preset::all() {
+        let out = dir.path().join(preset.name);
+        run_ok(&["-q", "synth", s(&analysis), "--plane", "32x32", "--preset", preset.name, "-o", s(&out)]);
+        let (_, _, _, manifest) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let recorded = &manifest["params"]["recipe"];
+        assert_eq!(*recorded, preset.to_json(), "{}: {manifest}", preset.name);
+        assert!(recorded["coarsest"]["passes"][0]["order"].is_string(), "{recorded}");
+    }
+}
+
+/// `--list-presets` prints one line per preset naming its paper, and needs no other input.
+#[test]
+fn list_presets_names_each_preset_and_its_paper() {
+    let r = btfsynth(&["synth", "--list-presets"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = String::from_utf8(r.stdout).unwrap();
+    let presets = btfsynth::synth::Preset::all();
+    assert_eq!(out.lines().count(), presets.len(), "{out}");
+    for (line, preset) in out.lines().zip(&presets) {
+        assert!(line.starts_with(preset.name) && line.contains(preset.paper), "{line}");
+    }
+    assert!(out.contains("Turk") && out.contains("Tong"), "{out}");
+}
+
+/// An unknown preset is a usage error that names the available ones.
+#[test]
+fn an_unknown_preset_is_refused_with_the_list() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    let out = dir.path().join("plane");
+    let r = btfsynth(&["synth", s(&analysis), "--plane", "16x16", "--preset", "wei2000", "-o", s(&out)]);
+    common::assert_usage_error(&r, "turk2001");
+    assert!(!out.exists());
+}
