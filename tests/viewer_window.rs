@@ -127,7 +127,7 @@ fn next_screenshot(display: &str, window: &str, before: &image::RgbImage, thresh
 fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
     if let Some(missing) = TOOLS.iter().find(|t| !on_path(t)) {
         let line = format!(
-            "skipping the window test: {missing} is not installed (apt-get install xvfb imagemagick xdotool)"
+            "skipped: the window test: {missing} is not installed (apt-get install xvfb imagemagick xdotool)"
         );
         assert!(std::env::var("BTFSYNTH_REQUIRE_XVFB").map_or(true, |v| v != "1"), "{line}");
         eprintln!("{line}");
@@ -177,7 +177,7 @@ fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
         find_window(&display, (320, 240)).map(Some)
     });
     let Some(window) = window else {
-        eprintln!("skipping the window test: BTFSYNTH_SKIP_GPU=1 and no GPU adapter");
+        eprintln!("skipped: the window test: BTFSYNTH_SKIP_GPU=1 and no GPU adapter");
         return;
     };
 
