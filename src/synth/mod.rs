@@ -12,6 +12,7 @@ pub mod engine;
 pub(crate) mod metric;
 pub mod plane;
 pub mod recipe;
+pub mod round;
 pub mod sample;
 pub mod start;
 pub mod surface;
