@@ -7,7 +7,9 @@
 //! Targets are a level stack of [`target::TargetLevel`]s; plane mode builds them from a
 //! regular grid ([`target::grid_levels`]).
 
+pub mod adaptive;
 pub mod candidates;
+pub mod constrained;
 pub mod engine;
 pub(crate) mod metric;
 pub mod plane;
