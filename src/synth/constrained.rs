@@ -72,6 +72,7 @@ fn readers(level: &TargetLevel) -> Vec<Vec<u32>> {
 mod tests {
     use super::*;
     use crate::synth::target::grid_levels;
+    use crate::synth::VisitOrder;
     use rand::SeedableRng;
 
     /// Checked against the definition by brute force: at every step, no unvisited vertex
@@ -101,6 +102,14 @@ mod tests {
                 visited[v as usize] = true;
             }
         }
+    }
+
+    #[test]
+    fn recipes_reach_it_through_the_visit_order() {
+        let level = &grid_levels(10, 10, 1, 3, 3)[0];
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let order = crate::synth::engine::visit_order(level, VisitOrder::MostConstrained, None, &mut rng);
+        assert_eq!(order, most_constrained_order(level, &mut ChaCha8Rng::seed_from_u64(9)));
     }
 
     #[test]
