@@ -15,6 +15,7 @@ pub(crate) mod metric;
 pub mod plane;
 pub mod recipe;
 pub mod round;
+pub mod round_pass;
 pub mod sample;
 pub mod start;
 pub mod surface;
