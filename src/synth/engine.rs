@@ -25,6 +25,9 @@ pub enum VisitOrder {
     Sequential,
     /// Increasing sweep distance along the texture direction (Turk §4.2, [`super::sweep`]).
     Sweep,
+    /// The unvisited vertex with the most visited neighbours next (Chen and Dong §6,
+    /// [`super::constrained`]).
+    MostConstrained,
 }
 
 /// What one pass found.
@@ -250,6 +253,7 @@ pub fn visit_order(
     match (order, sweep) {
         (VisitOrder::Random, _) => ids.shuffle(rng),
         (VisitOrder::Sweep, Some(s)) => ids.sort_by(|&a, &b| s[a as usize].total_cmp(&s[b as usize])),
+        (VisitOrder::MostConstrained, _) => return super::constrained::most_constrained_order(level, rng),
         _ => {}
     }
     ids

@@ -7,11 +7,15 @@
 //! Targets are a level stack of [`target::TargetLevel`]s; plane mode builds them from a
 //! regular grid ([`target::grid_levels`]).
 
+pub mod adaptive;
 pub mod candidates;
+pub mod constrained;
 pub mod engine;
 pub(crate) mod metric;
 pub mod plane;
 pub mod recipe;
+pub mod round;
+pub mod round_pass;
 pub mod sample;
 pub mod start;
 pub mod surface;

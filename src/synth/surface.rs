@@ -77,7 +77,7 @@ fn check_frames(mesh: &Mesh, frames: &Frames, name: &str) -> Result<()> {
 }
 
 /// What flattening needs of the connectivity, built once per mesh.
-struct Topology {
+pub(super) struct Topology {
     rings: VertexRings,
     /// CSR: the faces around vertex v are `vertex_faces[face_start[v]..face_start[v + 1]]`.
     face_start: Vec<usize>,
@@ -87,7 +87,7 @@ struct Topology {
 }
 
 impl Topology {
-    fn new(mesh: &Mesh) -> Topology {
+    pub(super) fn new(mesh: &Mesh) -> Topology {
         let triangles = mesh.triangles();
         let mut face_start = vec![0usize; mesh.vertex_count() + 1];
         for t in triangles {
@@ -133,9 +133,9 @@ fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
 /// A flattened patch around one vertex, in (s, t) coordinates with the vertex at 0. One is
 /// reused for every vertex a thread flattens: per-mesh arrays stamped with the patch's
 /// generation stand in for maps and sets (hashing was most of the templates' time).
-struct Patch {
+pub(super) struct Patch {
     /// Faces in the order they were reached (the vertex's own faces first).
-    faces: Vec<u32>,
+    pub(super) faces: Vec<u32>,
     /// Vertices in the order they were placed (the centre first).
     order: Vec<u32>,
     generation: u32,
@@ -147,7 +147,7 @@ struct Patch {
 }
 
 impl Patch {
-    fn new(mesh: &Mesh) -> Self {
+    pub(super) fn new(mesh: &Mesh) -> Self {
         Patch {
             faces: Vec::new(),
             order: Vec::new(),
@@ -169,7 +169,7 @@ impl Patch {
         (self.placed[vertex as usize] == self.generation).then(|| self.uv[vertex as usize])
     }
 
-    fn corners(&self, mesh: &Mesh, f: u32) -> Option<[Vec2; 3]> {
+    pub(super) fn corners(&self, mesh: &Mesh, f: u32) -> Option<[Vec2; 3]> {
         let t = mesh.triangles()[f as usize];
         Some([self.uv_of(t[0])?, self.uv_of(t[1])?, self.uv_of(t[2])?])
     }
@@ -195,7 +195,14 @@ impl Patch {
 /// one-ring by a discrete exponential map, then breadth-first across shared edges, each new
 /// vertex placed rigidly against the edge it was reached over, until the triangles lie
 /// beyond `reach` (plus one edge) of `v`.
-fn flatten(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, reach: f32, patch: &mut Patch) {
+pub(super) fn flatten(
+    mesh: &Mesh,
+    frames: &Frames,
+    topology: &Topology,
+    v: u32,
+    reach: f32,
+    patch: &mut Patch,
+) {
     patch.restart();
     patch.place(v, Vec2::ZERO);
     unfold_ring(mesh, frames, topology, v, patch);
@@ -331,7 +338,7 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize) -> Vec<Slo
 
 /// Barycentric weights of `q` in triangle `t`, if it lies inside (weights clamped to ≥ 0
 /// and renormalised); `None` outside or for a degenerate triangle.
-fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
+pub(super) fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
     let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
     // NaN too: a patch vertex at NaN (from a zero-length edge) yields no slot.
     if area.is_nan() || area.abs() <= 1e-9 {
@@ -349,7 +356,7 @@ fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
 }
 
 /// A slot from a face and weights; a pixel on a vertex becomes [`Slot::at`], as on a grid.
-fn slot(face: [u32; 3], weights: [f32; 3]) -> Slot {
+pub(super) fn slot(face: [u32; 3], weights: [f32; 3]) -> Slot {
     match weights.iter().position(|&w| w >= 1.0 - INSIDE_TOLERANCE) {
         Some(k) => Slot::at(face[k]),
         None => Slot { vertices: face, weights },
@@ -431,14 +438,14 @@ fn parent_of(p: Vec3, coarse: &Mesh, frames: &Frames, bvh: &TriangleBvh, fine_te
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::synth::target::{grid_levels, OUTSIDE};
 
     /// A w × h grid in z = 0 with `spacing` between vertices; vertex (x, y) is index
     /// y·w + x at (x, −y)·spacing, so rows run down t = +y as image rows do, and its frames
     /// are s = +x, t = +y, n = +z.
-    fn flat_grid(w: u32, h: u32, spacing: f32) -> (Mesh, Frames) {
+    pub(crate) fn flat_grid(w: u32, h: u32, spacing: f32) -> (Mesh, Frames) {
         let at = |x: u32, y: u32| y * w + x;
         let positions = (0..h)
             .flat_map(|y| (0..w).map(move |x| Vec3::new(x as f32, -(y as f32), 0.0) * spacing))
@@ -505,7 +512,7 @@ mod tests {
         assert!((pairs[0].1 - 0.25).abs() < 1e-5 && (pairs[1].1 - 0.75).abs() < 1e-5);
     }
 
-    fn bunny() -> (Mesh, Frames, f32) {
+    pub(crate) fn bunny() -> (Mesh, Frames, f32) {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
         let mesh = crate::mesh::load(std::path::Path::new(path)).expect("bundled mesh").with_normals();
         let normals = mesh.normals().expect("computed").to_vec();

@@ -1,0 +1,246 @@
+//! One pass of Chen and Dong's matching (2008 §5–6) over a level: each vertex's round
+//! neighbourhood ([`super::round`]) is compared with the sample's by the adaptive metric
+//! ([`super::adaptive`]), among k-coherence candidates (on a finer level these surround the
+//! inherited texel, the paper's candidates near the 4 linked pixels). Vertices not visited
+//! yet in the pass are left out of the neighbourhoods (the paper's non-coloured points).
+//!
+//! A library part: no preset runs it yet.
+
+use super::adaptive::{choose, RoundQuery, Scratch};
+use super::candidates::Coherence;
+use super::engine::{PassStats, State};
+use super::metric::known_parts;
+use super::recipe::Mask;
+use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
+use super::sample::SampleLevel;
+use super::surface::slot;
+use super::target::{Slot, TargetLevel, OUTSIDE};
+use crate::{Error, Result};
+use rand_chacha::ChaCha8Rng;
+use std::f32::consts::TAU;
+
+/// Where a level's round neighbourhoods come from.
+pub enum RoundTarget<'a> {
+    /// A regular `width × height` grid (plane mode) with the texture's x along the grid's:
+    /// the points resampled from the grid's cells, each cut into two triangles, on demand.
+    /// Points past the edge are not compared unless the grid `wraps`.
+    Grid { width: usize, height: usize, wraps: bool },
+    /// A mesh: read from its marching at each vertex's start point.
+    Mesh { marching: &'a SurfaceMarching, starts: &'a [StartPoint] },
+}
+
+impl RoundTarget<'_> {
+    /// The round neighbourhood of vertex `v` under `stencil`, into `out`.
+    pub fn slots(&self, v: usize, stencil: RoundStencil, out: &mut Vec<Slot>) {
+        match *self {
+            RoundTarget::Mesh { marching, starts } => marching.slots(v, starts[v], out),
+            RoundTarget::Grid { width, height, wraps } => {
+                out.clear();
+                let (x, y) = ((v % width) as f32, (v / width) as f32);
+                out.extend(stencil.layout().iter().map(|&(c, turn)| {
+                    let angle = turn * TAU;
+                    // x along the grid, y down its rows, as the square templates.
+                    let (px, py) = (x + c as f32 * angle.cos(), y - c as f32 * angle.sin());
+                    grid_slot(px, py, width, height, wraps)
+                }));
+            }
+        }
+    }
+}
+
+/// The slot at real grid position (px, py): barycentric in the half of its cell it lies in.
+fn grid_slot(px: f32, py: f32, width: usize, height: usize, wraps: bool) -> Slot {
+    // Snap rounding noise so that points on grid lines stay on them.
+    let (px, py) = (snap(px), snap(py));
+    let (x0, y0) = (px.floor() as i64, py.floor() as i64);
+    let (u, w) = (px - x0 as f32, py - y0 as f32);
+    let vertex = |dx: i64, dy: i64| -> Option<u32> {
+        let (mut x, mut y) = (x0 + dx, y0 + dy);
+        if wraps {
+            (x, y) = (x.rem_euclid(width as i64), y.rem_euclid(height as i64));
+        }
+        ((0..width as i64).contains(&x) && (0..height as i64).contains(&y))
+            .then(|| (y * width as i64 + x) as u32)
+    };
+    let (corners, weights) = if u >= w {
+        ([vertex(0, 0), vertex(1, 0), vertex(1, 1)], [1.0 - u, u - w, w])
+    } else {
+        ([vertex(0, 0), vertex(0, 1), vertex(1, 1)], [1.0 - w, w - u, u])
+    };
+    // A corner off the grid with weight on it: nothing to compare there.
+    if corners.iter().zip(&weights).any(|(c, &wt)| c.is_none() && wt > 1e-6) {
+        return Slot::NONE;
+    }
+    slot(corners.map(|c| c.unwrap_or(OUTSIDE)), weights)
+}
+
+fn snap(p: f32) -> f32 {
+    if (p - p.round()).abs() < 1e-4 {
+        p.round()
+    } else {
+        p
+    }
+}
+
+/// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`).
+/// With [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far
+/// in the pass are compared; with [`Mask::Full`] (refining a level) every vertex is.
+#[allow(clippy::too_many_arguments)]
+pub fn adaptive_pass(
+    level: &TargetLevel,
+    round: &RoundTarget,
+    state: &mut State,
+    sample: &SampleLevel,
+    round_sample: &RoundSample,
+    (k, mask): (usize, Mask),
+    order: &[u32],
+    rng: &mut ChaCha8Rng,
+) -> Result<PassStats> {
+    if !matches!(mask, Mask::Visited | Mask::Full) {
+        return Err(Error::invalid("an adaptive pass compares visited vertices or all of them"));
+    }
+    let map = sample
+        .appearance
+        .as_ref()
+        .ok_or_else(|| Error::invalid("the adaptive metric needs appearance vectors"))?;
+    let stencil = round_sample.stencil;
+    // The round neighbourhood reads one texel beyond its outer circle (bilinear).
+    let radius = stencil.circles + 1;
+    let mut known = (mask == Mask::Visited).then(|| vec![false; level.vertices]);
+    let mut coherence = Coherence::new(sample);
+    let (mut slots, mut shifts, mut scratch) = (Vec::new(), Vec::new(), Scratch::default());
+    let mut query = RoundQuery::default();
+    let (mut candidate_sum, mut top_sum) = (0usize, 0usize);
+    for &v in order {
+        let v = v as usize;
+        round.slots(v, stencil, &mut slots);
+        query.values.clear();
+        query.values.resize(slots.len() * map.dims, 0.0);
+        query.known.clear();
+        query.known.resize(slots.len(), false);
+        for (p, parts, count) in known_parts(&slots, known.as_deref()) {
+            query.known[p] = true;
+            for &(u, weight) in &parts[..count] {
+                if u == OUTSIDE {
+                    continue;
+                }
+                let [x, y] = state.uv[u as usize];
+                let values = &mut query.values[p * map.dims..(p + 1) * map.dims];
+                values.iter_mut().zip(map.at(x as i64, y as i64)).for_each(|(q, &a)| *q += weight * a);
+            }
+        }
+        let candidates = coherence.gather(
+            level.shifts_of(v, &mut shifts),
+            known.as_deref(),
+            state,
+            sample,
+            (k, radius, false),
+        );
+        let chosen = match choose(&query, round_sample, candidates, &mut scratch) {
+            Some(choice) => {
+                top_sum += choice.top_size;
+                let q = choice.texel as usize;
+                [(q % sample.width) as i32, (q / sample.width) as i32]
+            }
+            None => super::start::random_texel(sample, radius, rng),
+        };
+        candidate_sum += candidates.len();
+        state.uv[v] = chosen;
+        state.labels[v] = sample.label_at(chosen[0] as i64, chosen[1] as i64);
+        if let Some(known) = known.as_mut() {
+            known[v] = true;
+        }
+    }
+    let n = order.len().max(1) as f64;
+    // The mean top size stands where the square passes report their mean best distance.
+    Ok(PassStats { mean_best: top_sum as f64 / n, mean_candidates: candidate_sum as f64 / n })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::engine::tests::periodic_sample;
+    use crate::synth::sample::AppearanceMap;
+    use crate::synth::surface::tests::flat_grid;
+    use crate::synth::target::grid_levels;
+    use glam::Vec3;
+    use rand::SeedableRng;
+
+    const STENCIL: RoundStencil = RoundStencil { circles: 3 };
+
+    /// On a grid, the round neighbourhood of the grid itself equals the one marched on the
+    /// same grid as a mesh, direction along x: the same surface points.
+    #[test]
+    fn grid_round_neighbourhoods_match_the_marching_of_a_flat_mesh() {
+        let (w, h) = (11usize, 10usize);
+        let (mesh, frames) = flat_grid(w as u32, h as u32, 0.5);
+        let marching = SurfaceMarching::new(&mesh, &frames.n, 0.5, STENCIL).unwrap();
+        let starts = marching.start_points(&frames);
+        let on_mesh = RoundTarget::Mesh { marching: &marching, starts: &starts };
+        let on_grid = RoundTarget::Grid { width: w, height: h, wraps: false };
+        let p = mesh.positions();
+        let at = |s: &Slot| -> Vec3 { (0..3).map(|k| p[s.vertices[k] as usize] * s.weights[k]).sum() };
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for v in [4 * w + 5, 5 * w + 4, 6 * w + 6] {
+            on_mesh.slots(v, STENCIL, &mut a);
+            on_grid.slots(v, STENCIL, &mut b);
+            for (i, (sa, sb)) in a.iter().zip(&b).enumerate() {
+                assert!(at(sa).distance(at(sb)) < 1e-4, "vertex {v}, point {i}: {sa:?} vs {sb:?}");
+            }
+        }
+        // Near the edge, points off the grid are not compared; wrapped, they are.
+        on_grid.slots(0, STENCIL, &mut b);
+        assert!(b.contains(&Slot::NONE));
+        RoundTarget::Grid { width: w, height: h, wraps: true }.slots(0, STENCIL, &mut b);
+        assert!(!b.contains(&Slot::NONE));
+    }
+
+    fn with_appearance(mut sample: SampleLevel) -> SampleLevel {
+        let onehot: Vec<f32> = sample
+            .labels
+            .iter()
+            .flat_map(|&l| (0..4).map(move |d| f32::from(u8::from(l as usize == d))))
+            .collect();
+        sample.appearance = Some(AppearanceMap::new(sample.width, sample.height, 4, &onehot, true));
+        sample
+    }
+
+    /// An exact copy of a tileable sample stays one: every vertex's own texel matches
+    /// exactly and survives every cut of the adaptive metric.
+    #[test]
+    fn an_exact_copy_is_a_fixed_point_of_an_adaptive_pass() {
+        let sample = with_appearance(periodic_sample(4));
+        let round_sample = RoundSample::new(sample.appearance.as_ref().unwrap(), 16, 16, STENCIL).unwrap();
+        let level = &grid_levels(32, 32, 1, 7, 3)[0];
+        let uv: Vec<[i32; 2]> = (0..32 * 32).map(|v| [v % 32 % 16, v / 32 % 16]).collect();
+        let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
+        let mut state = State { labels, uv };
+        let before = state.clone();
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
+        let round = RoundTarget::Grid { width: 32, height: 32, wraps: true };
+        let full = (4, Mask::Full);
+        adaptive_pass(level, &round, &mut state, &sample, &round_sample, full, &order, &mut rng).unwrap();
+        assert_eq!(state.labels, before.labels);
+        let half = (4, Mask::Half);
+        assert!(
+            adaptive_pass(level, &round, &mut state, &sample, &round_sample, half, &order, &mut rng).is_err()
+        );
+        // A random start is pulled towards the sample: most vertices then continue a
+        // neighbour's copy (their texel is a neighbour's shifted by one step).
+        let mut state = crate::synth::start::random_state(level, &sample, 4, &mut rng);
+        for mask in [Mask::Visited, Mask::Full] {
+            let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
+            let how = (4, mask);
+            adaptive_pass(level, &round, &mut state, &sample, &round_sample, how, &order, &mut rng).unwrap();
+        }
+        let coherent = (0..32 * 32)
+            .filter(|&v| {
+                let right = (v / 32) * 32 + (v % 32 + 1) % 32;
+                let (a, b) = (state.uv[v], state.uv[right]);
+                (b[0] - a[0]).rem_euclid(16) == 1 && b[1] == a[1]
+            })
+            .count();
+        assert!(coherent > 32 * 32 / 2, "{coherent} of 1024 continue to the right");
+    }
+}
