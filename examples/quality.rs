@@ -313,12 +313,7 @@ fn measure_child(args: &[String]) -> i32 {
 }
 
 fn load(path: &Path) -> Result<Picture> {
-    let rgb = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.to_rgb32f();
-    Ok(Picture {
-        width: rgb.width() as usize,
-        height: rgb.height() as usize,
-        rgb: rgb.pixels().map(|p| p.0).collect(),
-    })
+    Picture::read(path).map_err(|e| e.to_string())
 }
 
 fn save(picture: &Picture, path: &Path) -> Result<()> {

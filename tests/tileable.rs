@@ -30,13 +30,7 @@ fn eval(analysis: &Path, result: &Path) -> Value {
 }
 
 fn picture(path: &Path) -> Picture {
-    let rgb = image::open(path).unwrap().to_rgb32f();
-    // PNG values are already sRGB-encoded, as the measures want them.
-    Picture {
-        width: rgb.width() as usize,
-        height: rgb.height() as usize,
-        rgb: rgb.pixels().map(|p| p.0).collect(),
-    }
+    Picture::read(path).unwrap()
 }
 
 /// The patch energy along the wrap edge of one plane, its whole patch energy, and the wrap

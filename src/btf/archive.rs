@@ -2,7 +2,7 @@
 //! `.hdr` for ATRIUM HDR, `.png`, `.exr`), read in place, one member per image, without
 //! unpacking anything to disk.
 
-use crate::btf::image_io::{crop_image, srgb_to_linear, RgbImage};
+use crate::btf::image_io::{crop_image, decoded_to_linear, RgbImage};
 use crate::btf::load::pair_from_name;
 use crate::btf::source::{resolve_crop, ImageSource};
 use crate::btf::{Crop, DirectionPair};
@@ -198,7 +198,7 @@ pub fn decode_image_bytes(bytes: &[u8], name: &str) -> Result<RgbImage, String> 
         _ => return Err("not a JPEG, PNG, EXR or HDR image".into()),
     };
     let decoded = decode_with_limits(bytes, format)?;
-    Ok(to_linear(decoded, format == image::ImageFormat::OpenExr))
+    Ok(decoded_to_linear(decoded, format == image::ImageFormat::OpenExr))
 }
 
 /// Decodes with a memory limit tied to the member's size, so a small member cannot make
@@ -212,31 +212,13 @@ fn decode_with_limits(bytes: &[u8], format: image::ImageFormat) -> Result<image:
     reader.decode().map_err(|e| format!("cannot decode image: {e}"))
 }
 
-fn to_linear(decoded: image::DynamicImage, linear: bool) -> RgbImage {
-    let (width, height) = (decoded.width() as usize, decoded.height() as usize);
-    let data: Vec<f16> = if linear {
-        decoded.to_rgb32f().into_raw().into_iter().map(f16::from_f32).collect()
-    } else if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
-        decoded
-            .to_rgb16()
-            .into_raw()
-            .into_iter()
-            .map(|v| f16::from_f32(srgb_to_linear(v as f32 / 65535.0)))
-            .collect()
-    } else {
-        let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
-        decoded.to_rgb8().into_raw().into_iter().map(|v| lut[v as usize]).collect()
-    };
-    RgbImage { width, height, data }
-}
-
 /// Radiance HDR. ATRIUM's files declare their resolution as `+X w -Y h`; like
 /// btf-extractor, they are read as the usual `-Y h +X w` scan lines and flipped upside
 /// down.
 fn decode_hdr(bytes: &[u8]) -> Result<RgbImage, String> {
     let (fixed, flip) = standard_hdr_orientation(bytes);
     let decoded = decode_with_limits(&fixed, image::ImageFormat::Hdr)?;
-    let mut image = to_linear(decoded, true);
+    let mut image = decoded_to_linear(decoded, true);
     if flip {
         let row = image.width * 3;
         let rows: Vec<&[f16]> = image.data.chunks_exact(row).rev().collect();

@@ -87,8 +87,16 @@ fn decode_8_or_16_bit(bytes: &[u8], path: &Path) -> Result<RgbImage> {
     let bits = u64::from(decoder.original_color_type().bits_per_pixel());
     check_expansion(path, (w.into(), h.into()), bits, bytes.len())?;
     let decoded = image::DynamicImage::from_decoder(decoder).map_err(cannot)?;
+    Ok(decoded_to_linear(decoded, false))
+}
+
+/// A decoded image as linear f16 RGB: `linear` images (EXR) as they are, 8- and 16-bit
+/// ones through the sRGB curve (a lookup table for 8 bits).
+pub fn decoded_to_linear(decoded: image::DynamicImage, linear: bool) -> RgbImage {
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
-    let data = if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
+    let data: Vec<f16> = if linear {
+        decoded.to_rgb32f().into_raw().into_iter().map(f16::from_f32).collect()
+    } else if decoded.color().bytes_per_pixel() / decoded.color().channel_count() > 1 {
         decoded
             .to_rgb16()
             .into_raw()
@@ -99,7 +107,7 @@ fn decode_8_or_16_bit(bytes: &[u8], path: &Path) -> Result<RgbImage> {
         let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
         decoded.to_rgb8().into_raw().into_iter().map(|v| lut[v as usize]).collect()
     };
-    Ok(RgbImage { width, height, data })
+    RgbImage { width, height, data }
 }
 
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<RgbImage> {

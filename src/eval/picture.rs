@@ -16,6 +16,15 @@ pub struct Picture {
 }
 
 impl Picture {
+    /// A PNG or JPEG file, its values kept as stored (sRGB-encoded).
+    pub fn read(path: &std::path::Path) -> crate::Result<Self> {
+        let rgb = image::open(path)
+            .map_err(|e| crate::Error::format(path, format!("cannot read the picture: {e}")))?
+            .to_rgb32f();
+        let (width, height) = (rgb.width() as usize, rgb.height() as usize);
+        Ok(Picture { width, height, rgb: rgb.pixels().map(|p| p.0).collect() })
+    }
+
     /// A picture from linear RGB values (clamped, then sRGB-encoded).
     pub fn from_linear(width: usize, height: usize, linear: impl IntoIterator<Item = [f32; 3]>) -> Self {
         let rgb = linear.into_iter().map(|p| p.map(encode_srgb)).collect();

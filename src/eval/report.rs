@@ -114,11 +114,8 @@ pub fn evaluate_surface(
 /// A bare picture (e.g. another synthesizer's output from the same sample) against the
 /// analysis' head-on image.
 pub fn evaluate_picture(analysis_dir: &Path, path: &Path) -> Result<Evaluation> {
-    let rgb = image::open(path)
-        .map_err(|e| Error::format(path, format!("cannot read the picture: {e}")))?
-        .to_rgb32f();
-    let (width, height) = (rgb.width() as usize, rgb.height() as usize);
-    let result = Picture { width, height, rgb: rgb.pixels().map(|p| p.0).collect() };
+    let result = Picture::read(path)?;
+    let (width, height) = (result.width, result.height);
     let images = SampleImages::open(analysis_dir)?;
     let tileable = crate::analysis::store::read_manifest(analysis_dir)?.params.tileable;
     let probe = images.default_probes().remove(0);
