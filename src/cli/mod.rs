@@ -48,7 +48,7 @@ enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Synthesize a surface texton map on a mesh (or, with --plane, on a regular grid).
     Synth(synth::SynthArgs),
-    /// Quality of a synthesized result: texton χ², energy, coherence.
+    /// How much a result looks like its sample: patch energy, colour χ², collapse, smear, copy.
     Eval(eval::EvalArgs),
     /// Remesh a triangle mesh to near-uniform edge length (OBJ/OFF/PLY in, binary PLY out).
     Remesh(remesh::RemeshArgs),
