@@ -82,8 +82,9 @@ pub struct SynthArgs {
     #[arg(long, value_enum, default_value_t = SearchKind::Kcoherence)]
     search: SearchKind,
     /// The engine's recipe, named after its paper: appearance (default: Tong's engine
-    /// matched on appearance vectors), tong2002 (Tong's texton distances through Γ) or
-    /// turk2001 (Turk's sweep, half-square start, extrapolate and refine passes). The whole
+    /// matched on appearance vectors), tong2002 (Tong's texton distances through Γ),
+    /// turk2001 (Turk's sweep, half-square start, extrapolate and refine passes) or chen2008
+    /// (Chen and Dong's round neighbourhoods, adaptive metric, most-constrained-first order). The whole
     /// recipe is recorded in the output. See --list-presets.
     #[arg(long, default_value = "appearance")]
     preset: String,

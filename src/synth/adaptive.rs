@@ -44,6 +44,18 @@ pub fn choose(
     candidates: &[u32],
     scratch: &mut Scratch,
 ) -> Option<AdaptiveChoice> {
+    choose_weighted(query, sample, candidates, |_| 1.0, scratch)
+}
+
+/// [`choose`] with each candidate's distance multiplied by `factor(texel)` at every size
+/// (choosy selection's usage penalty, [`super::engine::Select::Choosy`]).
+pub fn choose_weighted(
+    query: &RoundQuery,
+    sample: &RoundSample,
+    candidates: &[u32],
+    factor: impl Fn(u32) -> f32,
+    scratch: &mut Scratch,
+) -> Option<AdaptiveChoice> {
     let first = *candidates.first()?;
     let Scratch { set, pairs } = scratch;
     set.clear();
@@ -53,7 +65,8 @@ pub fn choose(
     for size in 1..=sample.stencil.circles {
         for entry in set.iter_mut() {
             let texel = sample.at(entry.0 as usize % sample.width, entry.0 as usize / sample.width);
-            entry.1 += robust_ssd(query, texel, sample.dims, RoundStencil::points_within(size), pairs);
+            let ssd = robust_ssd(query, texel, sample.dims, RoundStencil::points_within(size), pairs);
+            entry.1 += factor(entry.0) * ssd;
         }
         keep_low_end(set);
         kept.push(set.len());

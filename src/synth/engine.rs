@@ -198,7 +198,7 @@ pub(crate) fn pass<M: Metric>(
 }
 
 /// How often each texel is in use on the level, for [`Select::Choosy`].
-struct Usage {
+pub(crate) struct Usage {
     width: usize,
     /// Per texel, the vertices whose coordinate it is (empty for [`Select::Argmin`]).
     count: Vec<u32>,
@@ -207,7 +207,7 @@ struct Usage {
 }
 
 impl Usage {
-    fn new(sample: &SampleLevel, state: &State, radius: usize, select: Select) -> Self {
+    pub(crate) fn new(sample: &SampleLevel, state: &State, radius: usize, select: Select) -> Self {
         let Select::Choosy { strength } = select else {
             return Usage { width: sample.width, count: Vec::new(), fair: 1.0, strength: 0.0 };
         };
@@ -226,14 +226,14 @@ impl Usage {
 
     /// The factor on texel `q`'s distance for a vertex now at `current`.
     #[inline]
-    fn factor(&self, q: u32, current: [i32; 2]) -> f32 {
+    pub(crate) fn factor(&self, q: u32, current: [i32; 2]) -> f32 {
         let Some(&n) = self.count.get(q as usize) else { return 1.0 };
         let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
         let excess = ((n - own) as f32 / self.fair - 1.0).max(0.0);
         1.0 + self.strength * excess * excess
     }
 
-    fn moved(&mut self, from: [i32; 2], to: [i32; 2]) {
+    pub(crate) fn moved(&mut self, from: [i32; 2], to: [i32; 2]) {
         if !self.count.is_empty() {
             self.count[from[1] as usize * self.width + from[0] as usize] -= 1;
             self.count[to[1] as usize * self.width + to[0] as usize] += 1;

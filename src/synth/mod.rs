@@ -35,8 +35,14 @@ use metric::{AppearanceMetric, GammaMetric, Metric};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use recipe::pass_search;
+use round::{RoundSample, RoundStencil};
+use round_pass::RoundTarget;
 use std::time::{Duration, Instant};
 use target::TargetLevel;
+
+/// The round neighbourhoods of [`MetricKind::Adaptive`]: three circles, as Chen and Dong's
+/// (the 7×7 square's reach).
+pub const ROUND_STENCIL: RoundStencil = RoundStencil { circles: 3 };
 
 /// Parameters of one synthesis.
 #[derive(Clone, Debug)]
@@ -92,7 +98,7 @@ pub fn synthesize(
         return Err(Error::invalid(format!("preset '{}': the coarsest level cannot inherit", preset.name)));
     }
     let uses_appearance =
-        preset.coarsest.passes.iter().chain(&preset.finer.passes).any(|p| p.metric == MetricKind::Appearance);
+        preset.coarsest.passes.iter().chain(&preset.finer.passes).any(|p| p.metric.needs_appearance());
     if uses_appearance && sample.levels[..targets.len()].iter().any(|l| l.appearance.is_none()) {
         return Err(Error::invalid(format!(
             "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
@@ -123,15 +129,16 @@ pub fn synthesize(
                 );
                 let k = search.list_length(level_sample);
                 let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric);
-                patches(metric, target, level_sample, (r, patch, k), &mut rng)
+                patches(metric, target, level_sample, (r, patch, k), &mut rng)?
             }
             (Start::Inherit, None) => unreachable!("checked above: the coarsest level does not inherit"),
         };
         let mut stats = PassStats::default();
+        let rounds = round_inputs(recipe, target, level_sample)?;
         for p in &recipe.passes {
             let order = visit_order(target, p.order, sweep.as_ref().map(|s| s[l].as_slice()), &mut rng);
-            let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref() };
-            stats = run_pass(p, &level, &mut current, params, &order, &mut rng);
+            let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref(), rounds: rounds.as_ref() };
+            stats = run_pass(p, &level, &mut current, params, &order, &mut rng)?;
             progress.advance(1);
         }
         let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
@@ -149,6 +156,30 @@ struct LevelInputs<'a> {
     l: usize,
     /// The coarser level's final state (none on the coarsest level).
     coarse: Option<&'a State>,
+    /// The level's round neighbourhoods and the sample's, when a pass matches them.
+    rounds: Option<&'a (RoundTarget<'a>, RoundSample)>,
+}
+
+/// The round neighbourhoods a level's adaptive passes compare (none if it has no such
+/// pass): the grid's own or the mesh level's marching, and the sample level's, resampled
+/// once here.
+fn round_inputs<'a>(
+    recipe: &LevelRecipe,
+    target: &'a TargetLevel,
+    sample: &SampleLevel,
+) -> Result<Option<(RoundTarget<'a>, RoundSample)>> {
+    if !recipe.passes.iter().any(|p| p.metric == MetricKind::Adaptive) {
+        return Ok(None);
+    }
+    let round = match (&target.neighbourhoods, &target.round) {
+        (&target::Neighbourhoods::Grid { width, height, wraps, .. }, _) => {
+            RoundTarget::Grid { width, height, wraps }
+        }
+        (_, Some(m)) => RoundTarget::Mesh { marching: &m.marching, starts: &m.starts },
+        (_, None) => return Err(Error::invalid("round neighbourhoods on a mesh need its marching")),
+    };
+    let map = sample.appearance.as_ref().expect("checked in synthesize");
+    Ok(Some((round, RoundSample::new(map, sample.width, sample.height, ROUND_STENCIL)?)))
 }
 
 /// Runs one pass, dispatching once on its metric so the candidate loop is monomorphised.
@@ -159,15 +190,22 @@ fn run_pass(
     params: &SynthParams,
     order: &[u32],
     rng: &mut ChaCha8Rng,
-) -> PassStats {
-    match p.metric {
+) -> Result<PassStats> {
+    Ok(match p.metric {
         MetricKind::Gamma => {
             run_pass_with(p, inputs, state, params, order, rng, |s, t| GammaMetric { sample: s, template: t })
         }
         MetricKind::Appearance => run_pass_with(p, inputs, state, params, order, rng, |s, t| {
             AppearanceMetric { map: s.appearance.as_ref().expect("checked in synthesize"), template: t }
         }),
-    }
+        MetricKind::Adaptive => {
+            let (round, round_sample) = inputs.rounds.expect("built for every level with an adaptive pass");
+            let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
+            let search = capped(pass_search(p, params.search), sample);
+            let how = (search, p.mask, p.select);
+            round_pass::adaptive_pass(target, round, state, sample, round_sample, how, order, rng)?
+        }
+    })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -214,9 +252,9 @@ fn patches(
     sample: &SampleLevel,
     sizes: (usize, f32, usize),
     rng: &mut ChaCha8Rng,
-) -> State {
+) -> Result<State> {
     let template = target.template;
-    match kind {
+    Ok(match kind {
         MetricKind::Gamma => {
             start::patch_state(target, sample, &GammaMetric { sample, template }, sizes, rng)
         }
@@ -224,7 +262,12 @@ fn patches(
             let map = sample.appearance.as_ref().expect("checked in synthesize");
             start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
         }
-    }
+        MetricKind::Adaptive => {
+            return Err(Error::invalid(
+                "random patches are seamed with square templates, not adaptive passes",
+            ))
+        }
+    })
 }
 
 /// The k-coherence k is capped by the lists the analysis stored.

@@ -16,6 +16,18 @@ pub enum MetricKind {
     /// them. For a photograph they are its colour neighbourhoods reduced by PCA, the
     /// nearest the engine has to Turk's colour SSD.
     Appearance,
+    /// Chen and Dong 2008 §5: round neighbourhoods of appearance vectors compared by the
+    /// adaptive metric ([`super::adaptive`], [`super::round_pass`]). Such a pass ignores
+    /// the parent neighbourhood and coherence bias fields (the linked pixels enter through
+    /// the inherited texels' candidates); choosy selection weighs its distances.
+    Adaptive,
+}
+
+impl MetricKind {
+    /// Whether the metric reads the sample's appearance vectors.
+    pub fn needs_appearance(self) -> bool {
+        matches!(self, MetricKind::Appearance | MetricKind::Adaptive)
+    }
 }
 
 /// How a level's map starts before its passes.
@@ -188,9 +200,37 @@ impl Preset {
         }
     }
 
+    /// Chen and Dong 2008 (§4–6): every level matched by the adaptive metric on round
+    /// neighbourhoods of three circles, in most-constrained-first order. The coarsest
+    /// level is synthesized from nothing (only coloured vertices compared, candidates from
+    /// those vertices' k-coherence), then refined once; every finer level inherits its
+    /// parent's texels (the linked pixels) and is refined from the candidates around them.
+    pub fn chen2008() -> Self {
+        let pass = |mask| Pass {
+            order: VisitOrder::MostConstrained,
+            mask,
+            parent: ParentNeighbourhood::None,
+            candidates: Candidates::Search,
+            metric: MetricKind::Adaptive,
+            select: Select::Choosy { strength: 0.3 },
+            coherence_bias: 0.0,
+        };
+        Preset {
+            name: "chen2008",
+            paper: "Chen and Dong, Adaptive Surface Texture Synthesis Using Round-Shaped Neighbourhoods, CGF 2008",
+            coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Mask::Visited), pass(Mask::Full)] },
+            finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(Mask::Full)] },
+        }
+    }
+
+    /// Whether any pass matches round neighbourhoods (which need a marching on meshes).
+    pub fn rounds(&self) -> bool {
+        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.metric == MetricKind::Adaptive)
+    }
+
     /// Every preset, the default first.
     pub fn all() -> Vec<Self> {
-        vec![Self::appearance(), Self::tong2002(), Self::turk2001()]
+        vec![Self::appearance(), Self::tong2002(), Self::turk2001(), Self::chen2008()]
     }
 
     /// Presets by name, for `--preset`.
@@ -238,6 +278,11 @@ mod tests {
         assert_eq!(json["finer"]["passes"][0]["parent"], "Wide");
         assert_eq!(json["finer"]["passes"][1]["order"], "Sweep");
         assert_eq!(Preset::appearance().to_json()["finer"]["passes"].as_array().unwrap().len(), 2);
+        let chen = Preset::chen2008().to_json();
+        assert_eq!(chen["coarsest"]["passes"][0]["metric"], "Adaptive");
+        assert_eq!(chen["coarsest"]["passes"][0]["mask"], "Visited");
+        assert_eq!(chen["finer"]["passes"][0]["order"], "MostConstrained");
+        assert!(Preset::chen2008().rounds() && !Preset::turk2001().rounds());
     }
 
     #[test]

@@ -197,6 +197,23 @@ impl SurfaceMarching {
     }
 }
 
+/// A mesh level's round neighbourhoods: its marching (done once) and the start points of
+/// its texture directions (redone per direction, cheaply).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MarchedLevel {
+    pub marching: SurfaceMarching,
+    pub starts: Vec<StartPoint>,
+}
+
+impl MarchedLevel {
+    /// Marches `mesh` with circles `texel` apart and starts them at `frames`' directions.
+    pub fn new(mesh: &Mesh, frames: &Frames, texel: f32, stencil: RoundStencil) -> Result<Self> {
+        let marching = SurfaceMarching::new(mesh, &frames.n, texel, stencil)?;
+        let starts = marching.start_points(frames);
+        Ok(MarchedLevel { marching, starts })
+    }
+}
+
 /// The slot at `turn` (fraction of a turn) on a circle of `radius` cut into `arcs`.
 fn point_slot(arcs: &[Arc], turn: f32, radius: f32) -> Slot {
     // The arc holding `turn`: the last one starting at or before it (cyclically).

@@ -3,12 +3,11 @@
 //! ([`super::adaptive`]), among k-coherence candidates (on a finer level these surround the
 //! inherited texel, the paper's candidates near the 4 linked pixels). Vertices not visited
 //! yet in the pass are left out of the neighbourhoods (the paper's non-coloured points).
-//!
-//! A library part: no preset runs it yet.
+//! The `chen2008` preset runs it ([`super::Preset::chen2008`]).
 
-use super::adaptive::{choose, RoundQuery, Scratch};
-use super::candidates::Coherence;
-use super::engine::{PassStats, State};
+use super::adaptive::{choose_weighted, RoundQuery, Scratch};
+use super::candidates::{full_candidates, Coherence, Search};
+use super::engine::{PassStats, Select, State, Usage};
 use super::metric::known_parts;
 use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
@@ -82,8 +81,8 @@ fn snap(p: f32) -> f32 {
     }
 }
 
-/// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`).
-/// With [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far
+/// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`)
+/// or, with [`Search::Full`], every candidate texel, picked as `select` says. With [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far
 /// in the pass are compared; with [`Mask::Full`] (refining a level) every vertex is.
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
@@ -92,7 +91,7 @@ pub fn adaptive_pass(
     state: &mut State,
     sample: &SampleLevel,
     round_sample: &RoundSample,
-    (k, mask): (usize, Mask),
+    (search, mask, select): (Search, Mask, Select),
     order: &[u32],
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
@@ -106,8 +105,11 @@ pub fn adaptive_pass(
     let stencil = round_sample.stencil;
     // The round neighbourhood reads one texel beyond its outer circle (bilinear).
     let radius = stencil.circles + 1;
+    let full = matches!(search, Search::Full).then(|| full_candidates(sample, radius));
+    let k = if let Search::KCoherence { k } = search { k } else { 1 };
     let mut known = (mask == Mask::Visited).then(|| vec![false; level.vertices]);
     let mut coherence = Coherence::new(sample);
+    let mut usage = Usage::new(sample, state, radius, select);
     let (mut slots, mut shifts, mut scratch) = (Vec::new(), Vec::new(), Scratch::default());
     let mut query = RoundQuery::default();
     let (mut candidate_sum, mut top_sum) = (0usize, 0usize);
@@ -129,14 +131,19 @@ pub fn adaptive_pass(
                 values.iter_mut().zip(map.at(x as i64, y as i64)).for_each(|(q, &a)| *q += weight * a);
             }
         }
-        let candidates = coherence.gather(
-            level.shifts_of(v, &mut shifts),
-            known.as_deref(),
-            state,
-            sample,
-            (k, radius, false),
-        );
-        let chosen = match choose(&query, round_sample, candidates, &mut scratch) {
+        let candidates = match &full {
+            Some(all) => all.as_slice(),
+            None => coherence.gather(
+                level.shifts_of(v, &mut shifts),
+                known.as_deref(),
+                state,
+                sample,
+                (k, radius, false),
+            ),
+        };
+        let current = state.uv[v];
+        let factor = |q: u32| usage.factor(q, current);
+        let chosen = match choose_weighted(&query, round_sample, candidates, factor, &mut scratch) {
             Some(choice) => {
                 top_sum += choice.top_size;
                 let q = choice.texel as usize;
@@ -145,6 +152,7 @@ pub fn adaptive_pass(
             None => super::start::random_texel(sample, radius, rng),
         };
         candidate_sum += candidates.len();
+        usage.moved(current, chosen);
         state.uv[v] = chosen;
         state.labels[v] = sample.label_at(chosen[0] as i64, chosen[1] as i64);
         if let Some(known) = known.as_mut() {
@@ -219,10 +227,10 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
         let round = RoundTarget::Grid { width: 32, height: 32, wraps: true };
-        let full = (4, Mask::Full);
+        let full = (Search::KCoherence { k: 4 }, Mask::Full, Select::Argmin);
         adaptive_pass(level, &round, &mut state, &sample, &round_sample, full, &order, &mut rng).unwrap();
         assert_eq!(state.labels, before.labels);
-        let half = (4, Mask::Half);
+        let half = (Search::KCoherence { k: 4 }, Mask::Half, Select::Argmin);
         assert!(
             adaptive_pass(level, &round, &mut state, &sample, &round_sample, half, &order, &mut rng).is_err()
         );
@@ -231,7 +239,7 @@ mod tests {
         let mut state = crate::synth::start::random_state(level, &sample, 4, &mut rng);
         for mask in [Mask::Visited, Mask::Full] {
             let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
-            let how = (4, mask);
+            let how = (Search::KCoherence { k: 4 }, mask, Select::Argmin);
             adaptive_pass(level, &round, &mut state, &sample, &round_sample, how, &order, &mut rng).unwrap();
         }
         let coherent = (0..32 * 32)

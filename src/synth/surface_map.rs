@@ -5,6 +5,7 @@
 //! and the engine runs coarse to fine. Output: a binary PLY of the finest mesh.
 
 use super::engine::State;
+use super::round::MarchedLevel;
 use super::surface::{link_levels, surface_level};
 use super::target::TargetLevel;
 use super::{synthesize, LevelReport, Sample, SynthParams};
@@ -131,6 +132,12 @@ pub fn build_pyramid(
             coarse_templates,
             fine.texel,
         )?;
+    }
+    if params.preset.rounds() {
+        // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
+        for (target, m) in targets.iter_mut().zip(&meshes) {
+            target.round = Some(MarchedLevel::new(&m.mesh, &m.frames, m.texel, super::ROUND_STENCIL)?);
+        }
     }
     seconds[2] = started.elapsed().as_secs_f64();
     Ok(SurfacePyramid { levels: meshes, targets, seconds })

@@ -142,6 +142,9 @@ pub struct TargetLevel {
     /// Templates of the coarser level's vertices, `parent_template` wide: a vertex's parent
     /// neighbourhood is its parent vertex's.
     pub parent_neighbourhoods: Option<Neighbourhoods>,
+    /// On a mesh, the round neighbourhoods' marching and start points, built only for
+    /// presets that match round neighbourhoods (grids compute theirs on demand).
+    pub round: Option<super::round::MarchedLevel>,
 }
 
 impl TargetLevel {
@@ -154,6 +157,7 @@ impl TargetLevel {
             parents: Vec::new(),
             parent_template: 0,
             parent_neighbourhoods: None,
+            round: None,
         }
     }
 
