@@ -142,3 +142,26 @@ fn an_unknown_preset_is_refused_with_the_list() {
     common::assert_usage_error(&r, "turk2001");
     assert!(!out.exists());
 }
+
+/// `chen2008` takes its candidates around the linked texels only: a full search is refused
+/// up front with one usage error line.
+#[test]
+fn chen2008_refuses_a_full_search() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = golden_inputs(dir.path());
+    let out = dir.path().join("full");
+    let r = btfsynth(&[
+        "synth",
+        s(&analysis),
+        "--plane",
+        "16x16",
+        "--preset",
+        "chen2008",
+        "--search",
+        "full",
+        "-o",
+        s(&out),
+    ]);
+    common::assert_usage_error(&r, "--search full");
+    assert!(!out.exists());
+}

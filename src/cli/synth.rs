@@ -147,6 +147,8 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Full => Search::Full,
     };
     let preset = Preset::by_name(&args.preset).map_err(usage)?;
+    // Before any remeshing: a refused search is a usage error.
+    preset.check_search(search).map_err(usage)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,

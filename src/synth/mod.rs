@@ -97,6 +97,7 @@ pub fn synthesize(
     if preset.coarsest.start == Start::Inherit {
         return Err(Error::invalid(format!("preset '{}': the coarsest level cannot inherit", preset.name)));
     }
+    preset.check_search(params.search)?;
     let uses_appearance =
         preset.coarsest.passes.iter().chain(&preset.finer.passes).any(|p| p.metric.needs_appearance());
     if uses_appearance && sample.levels[..targets.len()].iter().any(|l| l.appearance.is_none()) {

@@ -228,6 +228,25 @@ impl Preset {
         self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.metric == MetricKind::Adaptive)
     }
 
+    /// Refuses a search the recipe cannot run well: adaptive passes take their candidates
+    /// around the linked texels (k-coherence), as Chen and Dong do; a full search there
+    /// smears (1.2% of stone33's adjacent pairs on one texel, README) at 60× the time.
+    pub fn check_search(&self, search: Search) -> Result<()> {
+        let adaptive_full = self
+            .coarsest
+            .passes
+            .iter()
+            .chain(&self.finer.passes)
+            .any(|p| p.metric == MetricKind::Adaptive && pass_search(p, search) == Search::Full);
+        if adaptive_full {
+            return Err(Error::invalid(format!(
+                "--search full: preset '{}' takes its candidates around the linked texels (k-coherence) only; use --search kcoherence",
+                self.name
+            )));
+        }
+        Ok(())
+    }
+
     /// Every preset, the default first.
     pub fn all() -> Vec<Self> {
         vec![Self::appearance(), Self::tong2002(), Self::turk2001(), Self::chen2008()]
@@ -294,5 +313,8 @@ mod tests {
             assert_ne!(p.coarsest.start, Start::Inherit, "{}: the coarsest level has no parent", p.name);
         }
         assert!(Preset::by_name("nope").is_err());
+        assert!(Preset::chen2008().check_search(Search::Full).is_err());
+        assert!(Preset::chen2008().check_search(Search::KCoherence { k: 4 }).is_ok());
+        assert!(Preset::turk2001().check_search(Search::Full).is_ok());
     }
 }

@@ -143,6 +143,9 @@ pub fn adaptive_pass(
         };
         let current = state.uv[v];
         let factor = |q: u32| usage.factor(q, current);
+        // Nothing known around the vertex: every candidate ties at zero, and a full search
+        // would give every such vertex the same first texel (streaks); start it at random.
+        let candidates = if query.known.contains(&true) { candidates } else { &[] };
         let chosen = match choose_weighted(&query, round_sample, candidates, factor, &mut scratch) {
             Some(choice) => {
                 top_sum += choice.top_size;
