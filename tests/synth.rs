@@ -42,11 +42,16 @@ fn a_tileable_periodic_sample_is_reproduced() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = analysed(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        reproduces_the_periodic_sample(dir.path(), &analysis, preset.name);
+        reproduces_the_periodic_sample(dir.path(), &analysis, &preset);
     }
 }
 
-fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::Path, preset: &str) {
+fn reproduces_the_periodic_sample(
+    dir: &std::path::Path,
+    analysis: &std::path::Path,
+    preset: &btfsynth::synth::Preset,
+) {
+    let (rounds, preset) = (preset.rounds(), preset.name);
     let plane = dir.join(format!("plane-{preset}"));
     let report = dir.join(format!("report-{preset}.json"));
     let r = btfsynth(&[
@@ -65,10 +70,17 @@ fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::P
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let q = eval(analysis, &plane);
     assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
-    assert!(q["textons"]["energy"].as_f64().unwrap() < 0.01, "{q}");
-    // Every output patch exists in the sample and the colours keep their shares: the pattern
-    // is reproduced, whether one copy or several in phase make it.
+    // Round neighbourhoods compare appearance vectors (5×5 colour windows) at radius 3 at
+    // most: inside a band of constant rows two copies one row apart look the same to them,
+    // so the coordinates may slip a row where two copies meet. The picture does not change
+    // (both patch energies below are zero), but the textons, which see further, count the
+    // slip: 0.07 here, against 0.9-1.2 when the top rows held a band the pattern lacks.
+    let texton_limit = if rounds { 0.15 } else { 0.01 };
+    assert!(q["textons"]["energy"].as_f64().unwrap() < texton_limit, "{q}");
+    // Every output patch exists in the sample, at both scales, and the colours keep their
+    // shares: the pattern is reproduced, whether one copy or several in phase make it.
     assert!(q["probes"][0]["patch_energy"].as_f64().unwrap() < 1e-6, "{q}");
+    assert!(q["probes"][0]["patch_energy_coarse"].as_f64().unwrap() < 1e-6, "{q}");
     assert!(q["probes"][0]["colour_chi2"].as_f64().unwrap() < 1e-3, "{q}");
     for file in ["labels.npy", "uv.npy", "textons.png", "uv.png", "result.png", "plane.json"] {
         assert!(plane.join(file).is_file(), "{file}");

@@ -161,8 +161,7 @@ pub(crate) fn pass<M: Metric>(
         let current = state.uv[v];
         let score = |q: u32, bound: f32| -> f32 {
             let (x, y) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
-            let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + plan.coherence_bias };
-            let factor = usage.factor(q, current) * fresh;
+            let factor = selection_factor(&usage, &coherence, q, current, plan.coherence_bias);
             let bound = bound / factor;
             let mut d = metric.cost(&own, x, y, bound);
             if let (Some(p), true) = (parent, d < bound) {
@@ -195,6 +194,20 @@ pub(crate) fn pass<M: Metric>(
     }
     let n = order.len().max(1) as f64;
     PassStats { mean_best: best_sum / n, mean_candidates: candidate_sum as f64 / n }
+}
+
+/// The factor on candidate `q`'s distance for a vertex now at `current`: choosy
+/// selection's usage penalty times the coherence bias on candidates that start a new copy.
+#[inline]
+pub(crate) fn selection_factor(
+    usage: &Usage,
+    coherence: &Coherence,
+    q: u32,
+    current: [i32; 2],
+    bias: f32,
+) -> f32 {
+    let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + bias };
+    usage.factor(q, current) * fresh
 }
 
 /// How often each texel is in use on the level, for [`Select::Choosy`].

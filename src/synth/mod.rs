@@ -203,7 +203,7 @@ fn run_pass(
             let (round, round_sample) = inputs.rounds.expect("built for every level with an adaptive pass");
             let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
             let search = capped(pass_search(p, params.search), sample);
-            let how = (search, p.mask, p.select);
+            let how = (search, p.mask, p.select, p.coherence_bias);
             round_pass::adaptive_pass(target, round, state, sample, round_sample, how, order, rng)?
         }
     })

@@ -7,7 +7,7 @@
 
 use super::adaptive::{choose_weighted, RoundQuery, Scratch};
 use super::candidates::{full_candidates, Coherence, Search};
-use super::engine::{PassStats, Select, State, Usage};
+use super::engine::{selection_factor, PassStats, Select, State, Usage};
 use super::metric::known_parts;
 use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
@@ -91,7 +91,7 @@ pub fn adaptive_pass(
     state: &mut State,
     sample: &SampleLevel,
     round_sample: &RoundSample,
-    (search, mask, select): (Search, Mask, Select),
+    (search, mask, select, bias): (Search, Mask, Select, f32),
     order: &[u32],
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
@@ -131,18 +131,21 @@ pub fn adaptive_pass(
                 values.iter_mut().zip(map.at(x as i64, y as i64)).for_each(|(q, &a)| *q += weight * a);
             }
         }
-        let candidates = match &full {
-            Some(all) => all.as_slice(),
-            None => coherence.gather(
-                level.shifts_of(v, &mut shifts),
-                known.as_deref(),
-                state,
-                sample,
-                (k, radius, false),
-            ),
+        // Gathered even under a full search: the forward shifts mark which candidates
+        // continue a neighbour's copy, for the coherence bias.
+        coherence.gather(
+            level.shifts_of(v, &mut shifts),
+            known.as_deref(),
+            state,
+            sample,
+            (k, radius, false),
+        );
+        let candidates: &[u32] = match &full {
+            Some(all) => all,
+            None => &coherence.out,
         };
         let current = state.uv[v];
-        let factor = |q: u32| usage.factor(q, current);
+        let factor = |q: u32| selection_factor(&usage, &coherence, q, current, bias);
         // Nothing known around the vertex: every candidate ties at zero, and a full search
         // would give every such vertex the same first texel (streaks); start it at random.
         let candidates = if query.known.contains(&true) { candidates } else { &[] };
@@ -230,10 +233,10 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
         let round = RoundTarget::Grid { width: 32, height: 32, wraps: true };
-        let full = (Search::KCoherence { k: 4 }, Mask::Full, Select::Argmin);
+        let full = (Search::KCoherence { k: 4 }, Mask::Full, Select::Argmin, 0.0);
         adaptive_pass(level, &round, &mut state, &sample, &round_sample, full, &order, &mut rng).unwrap();
         assert_eq!(state.labels, before.labels);
-        let half = (Search::KCoherence { k: 4 }, Mask::Half, Select::Argmin);
+        let half = (Search::KCoherence { k: 4 }, Mask::Half, Select::Argmin, 0.0);
         assert!(
             adaptive_pass(level, &round, &mut state, &sample, &round_sample, half, &order, &mut rng).is_err()
         );
@@ -242,7 +245,7 @@ mod tests {
         let mut state = crate::synth::start::random_state(level, &sample, 4, &mut rng);
         for mask in [Mask::Visited, Mask::Full] {
             let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
-            let how = (Search::KCoherence { k: 4 }, mask, Select::Argmin);
+            let how = (Search::KCoherence { k: 4 }, mask, Select::Argmin, 0.0);
             adaptive_pass(level, &round, &mut state, &sample, &round_sample, how, &order, &mut rng).unwrap();
         }
         let coherent = (0..32 * 32)
