@@ -3,8 +3,10 @@
 //! vertices' `s` (lower is smoother), for the orientation given as on the command line
 //! (`smooth`, `axis:x,y,z` or a constraints file).
 //!
-//! `cargo run --release --example field_bench -- MESH ORIENTATION` where MESH is e.g.
-//! `btfsynth remesh data/bunny-1k8.obj --vertices 250000 -o bunny-250k.ply`.
+//! `cargo run --release --example field_bench -- MESH ORIENTATION [FIELD.txt]` where MESH
+//! is e.g. `btfsynth remesh data/bunny-1k8.obj --vertices 250000 -o bunny-250k.ply`. With
+//! FIELD.txt, each vertex's position, normal and `s` are written there, one vertex a line
+//! (`x y z nx ny nz sx sy sz`), for plotting.
 
 use btfsynth::mesh::field::{frames, Orientation};
 use btfsynth::mesh::topology::one_rings;
@@ -12,8 +14,8 @@ use std::time::Instant;
 
 fn main() -> btfsynth::Result<()> {
     let mut args = std::env::args().skip(1);
-    let (Some(mesh_path), Some(orientation)) = (args.next(), args.next()) else {
-        eprintln!("usage: field_bench MESH ORIENTATION");
+    let (Some(mesh_path), Some(orientation), dump) = (args.next(), args.next(), args.next()) else {
+        eprintln!("usage: field_bench MESH ORIENTATION [FIELD.txt]");
         std::process::exit(2);
     };
     let mesh = btfsynth::mesh::load(mesh_path.as_ref())?;
@@ -25,7 +27,17 @@ fn main() -> btfsynth::Result<()> {
         field = Some(frames(&mesh, &orientation, 0)?);
         best = best.min(start.elapsed().as_secs_f64());
     }
-    let s = field.map(|f| f.s).unwrap_or_default();
+    let Some(field) = field else { return Ok(()) };
+    if let Some(dump) = dump {
+        let lines: String = (0..field.len())
+            .map(|v| {
+                let [p, n, s] = [mesh.positions()[v], field.n[v], field.s[v]];
+                format!("{} {} {} {} {} {} {} {} {}\n", p.x, p.y, p.z, n.x, n.y, n.z, s.x, s.y, s.z)
+            })
+            .collect();
+        std::fs::write(&dump, lines).map_err(|e| btfsynth::Error::io(&dump, e))?;
+    }
+    let s = field.s;
     let rings = one_rings(&mesh);
     let (mut sum, mut count) = (0.0f64, 0usize);
     for v in 0..mesh.vertex_count() {
