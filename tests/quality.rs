@@ -70,10 +70,13 @@ fn photographs_neither_collapse_nor_smear_for_any_preset_or_seed() {
         let analysis = analyse(&path, "0,0,96,96", &dir.path().join(name), &[]);
         for preset in Preset::all() {
             for seed in ["0", "1", "2", "3"] {
-                let out = dir.path().join(format!("{name}-{}-{seed}", preset.name));
-                plane(&analysis, "192x192", &out, &["--preset", preset.name, "--seed", seed]);
+                let out = dir.path().join(format!("{name}-{}-{seed}", preset.name.as_str()));
+                plane(&analysis, "192x192", &out, &["--preset", preset.name.as_str(), "--seed", seed]);
                 let q = eval(&analysis, &out);
-                assert_no_collapse_smear_or_copy(&q, &format!("{name}, {}, seed {seed}", preset.name));
+                assert_no_collapse_smear_or_copy(
+                    &q,
+                    &format!("{name}, {}, seed {seed}", preset.name.as_str()),
+                );
             }
         }
     }
@@ -86,8 +89,13 @@ fn the_bundled_photograph_neither_collapses_nor_smears() {
     let gravel = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png"));
     let analysis = analyse(gravel, "0,0,96,96", &dir.path().join("gravel"), &[]);
     for preset in Preset::all() {
-        let out = plane(&analysis, "192x192", &dir.path().join(preset.name), &["--preset", preset.name]);
-        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), preset.name);
+        let out = plane(
+            &analysis,
+            "192x192",
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str()],
+        );
+        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), preset.name.as_str());
     }
 }
 
@@ -102,10 +110,13 @@ fn full_search_does_not_collapse_either() {
         let out = plane(
             &analysis,
             "96x96",
-            &dir.path().join(preset.name),
-            &["--preset", preset.name, "--search", "full"],
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str(), "--search", "full"],
         );
-        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), &format!("{} full search", preset.name));
+        assert_no_collapse_smear_or_copy(
+            &eval(&analysis, &out),
+            &format!("{} full search", preset.name.as_str()),
+        );
     }
 }
 
@@ -117,10 +128,15 @@ fn a_generated_btf_neither_collapses_nor_smears_under_any_light() {
     run_ok(&["-q", "gen", "pebbles", "--size", "48", "--directions", "grid:5", "-o", s(&stack)]);
     let analysis = analyse(&stack, "0,0,48,48", &dir.path().join("analysis"), &["--levels", "2"]);
     for preset in Preset::all() {
-        let out = plane(&analysis, "96x96", &dir.path().join(preset.name), &["--preset", preset.name]);
+        let out = plane(
+            &analysis,
+            "96x96",
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str()],
+        );
         let q = eval(&analysis, &out);
         assert!(q["probes"].as_array().unwrap().len() >= 2, "a BTF is judged under several lights: {q}");
-        assert_no_collapse_smear_or_copy(&q, preset.name);
+        assert_no_collapse_smear_or_copy(&q, preset.name.as_str());
         for file in ["result.png", "result_tv000_pv000_tl000_pl000.png", "sample_tv000_pv000_tl000_pl000.png"]
         {
             assert!(out.join(file).is_file(), "{file}");
@@ -136,7 +152,7 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
     let analysis = common::analyze_gravel(dir.path(), "analysis", "0,0,48,48");
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
     for preset in Preset::all() {
-        let out = dir.path().join(format!("{}.ply", preset.name));
+        let out = dir.path().join(format!("{}.ply", preset.name.as_str()));
         run_ok(&[
             "-q",
             "synth",
@@ -145,7 +161,7 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
             "--vertices",
             "6000",
             "--preset",
-            preset.name,
+            preset.name.as_str(),
             "-o",
             s(&out),
         ]);
@@ -154,10 +170,14 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
         // outermost ring is 164 of its 1764 texels (9.3%).
         let on_ring = map.state.uv.iter().filter(|&&[x, y]| x == 3 || y == 3 || x == 44 || y == 44).count();
         let share = on_ring as f64 / map.state.uv.len() as f64;
-        assert!(share < 2.0 * 164.0 / 1764.0, "{}: {share} of the vertices on the band's edge", preset.name);
+        assert!(
+            share < 2.0 * 164.0 / 1764.0,
+            "{}: {share} of the vertices on the band's edge",
+            preset.name.as_str()
+        );
         let q = eval(&analysis, &out);
         let collapse = q["coords"]["collapse"].as_f64().unwrap();
-        assert!(collapse <= MAX_COLLAPSE, "{}: collapse {collapse}", preset.name);
+        assert!(collapse <= MAX_COLLAPSE, "{}: collapse {collapse}", preset.name.as_str());
     }
 }
 

@@ -42,7 +42,7 @@ fn a_tileable_periodic_sample_is_reproduced() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = analysed(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        reproduces_the_periodic_sample(dir.path(), &analysis, preset.name);
+        reproduces_the_periodic_sample(dir.path(), &analysis, preset.name.as_str());
     }
 }
 
@@ -86,7 +86,7 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
     let a = common::analyze_gravel_crop(dir.path(), "a");
     for preset in btfsynth::synth::Preset::all() {
         let run = |name: &str, seed: &str| {
-            let out = dir.path().join(format!("{}-{name}", preset.name));
+            let out = dir.path().join(format!("{}-{name}", preset.name.as_str()));
             let r = btfsynth(&[
                 "-q",
                 "synth",
@@ -94,7 +94,7 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
                 "--plane",
                 "40x40",
                 "--preset",
-                preset.name,
+                preset.name.as_str(),
                 "--seed",
                 seed,
                 "-o",
@@ -103,8 +103,8 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
             assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
             (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap())
         };
-        assert_eq!(run("one", "3"), run("two", "3"), "{}", preset.name);
-        assert_ne!(run("three", "3").1, run("four", "4").1, "{}", preset.name);
+        assert_eq!(run("one", "3"), run("two", "3"), "{}", preset.name.as_str());
+        assert_ne!(run("three", "3").1, run("four", "4").1, "{}", preset.name.as_str());
     }
 }
 

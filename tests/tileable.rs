@@ -98,7 +98,7 @@ fn tileable_planes_join_without_a_seam_on_the_bundled_photograph() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = common::analyze_gravel(dir.path(), "gravel", "0,0,96,96");
     for preset in btfsynth::synth::Preset::all() {
-        check_seams(&analysis, dir.path(), "gravel", preset.name);
+        check_seams(&analysis, dir.path(), "gravel", preset.name.as_str());
     }
 }
 
@@ -113,7 +113,7 @@ fn tileable_planes_join_without_a_seam_on_shared_photographs() {
         let analysis = dir.path().join(name);
         let r = btfsynth(&["-q", "analyze", s(&path), "--crop", "0,0,96,96", "-o", s(&analysis)]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        check_seams(&analysis, dir.path(), name, btfsynth::synth::Preset::appearance().name);
+        check_seams(&analysis, dir.path(), name, &btfsynth::synth::Preset::appearance().name);
     }
 }
 
