@@ -99,6 +99,46 @@ fn the_bundled_photograph_neither_collapses_nor_smears() {
     }
 }
 
+/// Colour SSD, reached through `--recipe` on every preset's schedule: on the stone photo
+/// of the shared data (seeds 0–3), on the bundled photograph, and with a full search.
+#[test]
+fn colour_recipes_neither_collapse_nor_smear() {
+    let dir = tempfile::tempdir().unwrap();
+    let gravel = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png"));
+    let small = analyse(gravel, "0,0,48,48", &dir.path().join("small"), &["--levels", "2"]);
+    let large = analyse(gravel, "0,0,96,96", &dir.path().join("gravel"), &[]);
+    let stone = btfsynth::testdata::shared_data(
+        "colour_recipes_neither_collapse_nor_smear",
+        "textures/gimp-Stone_stone33.png",
+    )
+    .map(|path| analyse(&path, "0,0,96,96", &dir.path().join("stone"), &[]));
+    for preset in Preset::all() {
+        let colour = common::colour_recipe(&preset);
+        let recipe = common::write_recipe(&dir.path().join(format!("{}.json", colour.name)), &colour);
+        let given = ["--recipe", s(&recipe)];
+        let name = colour.name.as_str();
+        let out = plane(&large, "192x192", &dir.path().join(format!("gravel-{name}")), &given);
+        assert_no_collapse_smear_or_copy(&eval(&large, &out), &format!("gravel, {name}"));
+        let out = plane(
+            &small,
+            "96x96",
+            &dir.path().join(format!("full-{name}")),
+            &[&given[..], &["--search", "full"]].concat(),
+        );
+        assert_no_collapse_smear_or_copy(&eval(&small, &out), &format!("{name} full search"));
+        for seed in ["0", "1", "2", "3"].iter().filter(|_| stone.is_some()) {
+            let stone = stone.as_ref().unwrap();
+            let out = plane(
+                stone,
+                "192x192",
+                &dir.path().join(format!("stone-{name}-{seed}")),
+                &[&given[..], &["--seed", seed]].concat(),
+            );
+            assert_no_collapse_smear_or_copy(&eval(stone, &out), &format!("stone33, {name}, seed {seed}"));
+        }
+    }
+}
+
 /// A full search sees every texel, so a faulty objective collapses it first (it used to
 /// copy one texel over 69% of a BTF result).
 #[test]

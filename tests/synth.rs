@@ -42,26 +42,36 @@ fn a_tileable_periodic_sample_is_reproduced() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = analysed(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        reproduces_the_periodic_sample(dir.path(), &analysis, preset.name.as_str());
+        reproduces_the_periodic_sample(dir.path(), &analysis, &["--preset", preset.name.as_str()]);
     }
 }
 
-fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::Path, preset: &str) {
-    let plane = dir.join(format!("plane-{preset}"));
-    let report = dir.join(format!("report-{preset}.json"));
-    let r = btfsynth(&[
-        "-q",
-        "synth",
-        analysis.to_str().unwrap(),
-        "--plane",
-        "64x48",
-        "--preset",
-        preset,
-        "-o",
-        plane.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ]);
+/// Colour SSD (reached through `--recipe`) on every preset's schedule reproduces it too.
+#[test]
+fn colour_recipes_reproduce_the_periodic_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analysed(dir.path());
+    for preset in btfsynth::synth::Preset::all() {
+        let colour = common::colour_recipe(&preset);
+        let file = common::write_recipe(&dir.path().join(format!("{}.json", colour.name)), &colour);
+        reproduces_the_periodic_sample(dir.path(), &analysis, &["--recipe", file.to_str().unwrap()]);
+    }
+}
+
+/// Asserts `synth` with the recipe flags `how` reproduces the checker of [`analysed`].
+fn reproduces_the_periodic_sample(dir: &std::path::Path, analysis: &std::path::Path, how: &[&str]) {
+    // A preset's name, or a recipe file's stem.
+    let tag = std::path::Path::new(how[1]).file_stem().unwrap().to_str().unwrap();
+    let plane = dir.join(format!("plane-{tag}"));
+    let report = dir.join(format!("report-{tag}.json"));
+    let r = btfsynth(
+        &[
+            &["-q", "synth", analysis.to_str().unwrap(), "--plane", "64x48"][..],
+            how,
+            &["-o", plane.to_str().unwrap(), "--report", report.to_str().unwrap()],
+        ]
+        .concat(),
+    );
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let q = eval(analysis, &plane);
     assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
