@@ -285,9 +285,13 @@ impl Preset {
         Ok(())
     }
 
-    /// The whole recipe as JSON, for the outputs.
+    /// The whole recipe as JSON, for the outputs. Numbers are written as their f32 reads
+    /// (0.3, not `to_value`'s widened 0.30000001192092896), so that a recipe copied out for
+    /// editing reads as it was written.
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+        serde_json::to_string(self)
+            .and_then(|text| serde_json::from_str(&text))
+            .unwrap_or(serde_json::Value::Null)
     }
 }
 
@@ -331,6 +335,7 @@ mod tests {
         assert_eq!(json["finer"]["passes"][0]["parent"], "Wide");
         assert_eq!(json["finer"]["passes"][1]["order"], "Sweep");
         assert_eq!(Preset::appearance().to_json()["finer"]["passes"].as_array().unwrap().len(), 2);
+        assert_eq!(json["finer"]["passes"][1]["select"]["Choosy"]["strength"], 0.3);
     }
 
     #[test]
