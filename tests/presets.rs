@@ -109,11 +109,21 @@ fn a_plane_records_its_whole_recipe() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = golden_inputs(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        let out = dir.path().join(preset.name);
-        run_ok(&["-q", "synth", s(&analysis), "--plane", "32x32", "--preset", preset.name, "-o", s(&out)]);
+        let out = dir.path().join(preset.name.as_str());
+        run_ok(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            "--plane",
+            "32x32",
+            "--preset",
+            preset.name.as_str(),
+            "-o",
+            s(&out),
+        ]);
         let (_, _, _, manifest) = btfsynth::synth::plane::read_plane(&out).unwrap();
         let recorded = &manifest["params"]["recipe"];
-        assert_eq!(*recorded, preset.to_json(), "{}: {manifest}", preset.name);
+        assert_eq!(*recorded, preset.to_json(), "{}: {manifest}", preset.name.as_str());
         assert!(recorded["coarsest"]["passes"][0]["order"].is_string(), "{recorded}");
     }
 }
@@ -127,7 +137,7 @@ fn list_presets_names_each_preset_and_its_paper() {
     let presets = btfsynth::synth::Preset::all();
     assert_eq!(out.lines().count(), presets.len(), "{out}");
     for (line, preset) in out.lines().zip(&presets) {
-        assert!(line.starts_with(preset.name) && line.contains(preset.paper), "{line}");
+        assert!(line.starts_with(preset.name.as_str()) && line.contains(preset.paper.as_str()), "{line}");
     }
     assert!(out.contains("Turk") && out.contains("Tong"), "{out}");
 }

@@ -70,10 +70,13 @@ fn photographs_neither_collapse_nor_smear_for_any_preset_or_seed() {
         let analysis = analyse(&path, "0,0,96,96", &dir.path().join(name), &[]);
         for preset in Preset::all() {
             for seed in ["0", "1", "2", "3"] {
-                let out = dir.path().join(format!("{name}-{}-{seed}", preset.name));
-                plane(&analysis, "192x192", &out, &["--preset", preset.name, "--seed", seed]);
+                let out = dir.path().join(format!("{name}-{}-{seed}", preset.name.as_str()));
+                plane(&analysis, "192x192", &out, &["--preset", preset.name.as_str(), "--seed", seed]);
                 let q = eval(&analysis, &out);
-                assert_no_collapse_smear_or_copy(&q, &format!("{name}, {}, seed {seed}", preset.name));
+                assert_no_collapse_smear_or_copy(
+                    &q,
+                    &format!("{name}, {}, seed {seed}", preset.name.as_str()),
+                );
             }
         }
     }
@@ -86,13 +89,53 @@ fn the_bundled_photograph_neither_collapses_nor_smears() {
     let gravel = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png"));
     let analysis = analyse(gravel, "0,0,96,96", &dir.path().join("gravel"), &[]);
     for preset in Preset::all() {
-        let refused = btfsynth::synth::Search::Full;
-        if preset.check_search(refused).is_err() {
-            // Refused with one usage error line (tested in tests/presets.rs).
-            continue;
+        let out = plane(
+            &analysis,
+            "192x192",
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str()],
+        );
+        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), preset.name.as_str());
+    }
+}
+
+/// Colour SSD, reached through `--recipe` on every preset's schedule: on the stone photo
+/// of the shared data (seeds 0–3), on the bundled photograph, and with a full search.
+#[test]
+fn colour_recipes_neither_collapse_nor_smear() {
+    let dir = tempfile::tempdir().unwrap();
+    let gravel = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png"));
+    let small = analyse(gravel, "0,0,48,48", &dir.path().join("small"), &["--levels", "2"]);
+    let large = analyse(gravel, "0,0,96,96", &dir.path().join("gravel"), &[]);
+    let stone = btfsynth::testdata::shared_data(
+        "colour_recipes_neither_collapse_nor_smear",
+        "textures/gimp-Stone_stone33.png",
+    )
+    .map(|path| analyse(&path, "0,0,96,96", &dir.path().join("stone"), &[]));
+    for preset in common::square_presets() {
+        let colour = common::colour_recipe(&preset);
+        let recipe = common::write_recipe(&dir.path().join(format!("{}.json", colour.name)), &colour);
+        let given = ["--recipe", s(&recipe)];
+        let name = colour.name.as_str();
+        let out = plane(&large, "192x192", &dir.path().join(format!("gravel-{name}")), &given);
+        assert_no_collapse_smear_or_copy(&eval(&large, &out), &format!("gravel, {name}"));
+        let out = plane(
+            &small,
+            "96x96",
+            &dir.path().join(format!("full-{name}")),
+            &[&given[..], &["--search", "full"]].concat(),
+        );
+        assert_no_collapse_smear_or_copy(&eval(&small, &out), &format!("{name} full search"));
+        for seed in ["0", "1", "2", "3"].iter().filter(|_| stone.is_some()) {
+            let stone = stone.as_ref().unwrap();
+            let out = plane(
+                stone,
+                "192x192",
+                &dir.path().join(format!("stone-{name}-{seed}")),
+                &[&given[..], &["--seed", seed]].concat(),
+            );
+            assert_no_collapse_smear_or_copy(&eval(stone, &out), &format!("stone33, {name}, seed {seed}"));
         }
-        let out = plane(&analysis, "192x192", &dir.path().join(preset.name), &["--preset", preset.name]);
-        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), preset.name);
     }
 }
 
@@ -112,10 +155,13 @@ fn full_search_does_not_collapse_either() {
         let out = plane(
             &analysis,
             "96x96",
-            &dir.path().join(preset.name),
-            &["--preset", preset.name, "--search", "full"],
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str(), "--search", "full"],
         );
-        assert_no_collapse_smear_or_copy(&eval(&analysis, &out), &format!("{} full search", preset.name));
+        assert_no_collapse_smear_or_copy(
+            &eval(&analysis, &out),
+            &format!("{} full search", preset.name.as_str()),
+        );
     }
 }
 
@@ -127,15 +173,15 @@ fn a_generated_btf_neither_collapses_nor_smears_under_any_light() {
     run_ok(&["-q", "gen", "pebbles", "--size", "48", "--directions", "grid:5", "-o", s(&stack)]);
     let analysis = analyse(&stack, "0,0,48,48", &dir.path().join("analysis"), &["--levels", "2"]);
     for preset in Preset::all() {
-        let refused = btfsynth::synth::Search::Full;
-        if preset.check_search(refused).is_err() {
-            // Refused with one usage error line (tested in tests/presets.rs).
-            continue;
-        }
-        let out = plane(&analysis, "96x96", &dir.path().join(preset.name), &["--preset", preset.name]);
+        let out = plane(
+            &analysis,
+            "96x96",
+            &dir.path().join(preset.name.as_str()),
+            &["--preset", preset.name.as_str()],
+        );
         let q = eval(&analysis, &out);
         assert!(q["probes"].as_array().unwrap().len() >= 2, "a BTF is judged under several lights: {q}");
-        assert_no_collapse_smear_or_copy(&q, preset.name);
+        assert_no_collapse_smear_or_copy(&q, preset.name.as_str());
         for file in ["result.png", "result_tv000_pv000_tl000_pl000.png", "sample_tv000_pv000_tl000_pl000.png"]
         {
             assert!(out.join(file).is_file(), "{file}");
@@ -151,7 +197,7 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
     let analysis = common::analyze_gravel(dir.path(), "analysis", "0,0,48,48");
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
     for preset in Preset::all() {
-        let out = dir.path().join(format!("{}.ply", preset.name));
+        let out = dir.path().join(format!("{}.ply", preset.name.as_str()));
         run_ok(&[
             "-q",
             "synth",
@@ -160,7 +206,7 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
             "--vertices",
             "6000",
             "--preset",
-            preset.name,
+            preset.name.as_str(),
             "-o",
             s(&out),
         ]);
@@ -169,10 +215,14 @@ fn surface_coordinates_do_not_pile_up_on_the_sample_border() {
         // outermost ring is 164 of its 1764 texels (9.3%).
         let on_ring = map.state.uv.iter().filter(|&&[x, y]| x == 3 || y == 3 || x == 44 || y == 44).count();
         let share = on_ring as f64 / map.state.uv.len() as f64;
-        assert!(share < 2.0 * 164.0 / 1764.0, "{}: {share} of the vertices on the band's edge", preset.name);
+        assert!(
+            share < 2.0 * 164.0 / 1764.0,
+            "{}: {share} of the vertices on the band's edge",
+            preset.name.as_str()
+        );
         let q = eval(&analysis, &out);
         let collapse = q["coords"]["collapse"].as_f64().unwrap();
-        assert!(collapse <= MAX_COLLAPSE, "{}: collapse {collapse}", preset.name);
+        assert!(collapse <= MAX_COLLAPSE, "{}: collapse {collapse}", preset.name.as_str());
     }
 }
 

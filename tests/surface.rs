@@ -14,7 +14,7 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     let dir = tempfile::tempdir().unwrap();
     let a = analysis(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        deterministic_and_described(dir.path(), &a, preset.name);
+        deterministic_and_described(dir.path(), &a, preset.name.as_str());
     }
 }
 

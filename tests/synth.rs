@@ -42,31 +42,47 @@ fn a_tileable_periodic_sample_is_reproduced() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = analysed(dir.path());
     for preset in btfsynth::synth::Preset::all() {
-        reproduces_the_periodic_sample(dir.path(), &analysis, &preset);
+        reproduces_the_periodic_sample(
+            dir.path(),
+            &analysis,
+            &["--preset", preset.name.as_str()],
+            preset.rounds(),
+        );
     }
 }
 
+/// Colour SSD (reached through `--recipe`) on every preset's schedule reproduces it too.
+#[test]
+fn colour_recipes_reproduce_the_periodic_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analysed(dir.path());
+    for preset in common::square_presets() {
+        let colour = common::colour_recipe(&preset);
+        let file = common::write_recipe(&dir.path().join(format!("{}.json", colour.name)), &colour);
+        reproduces_the_periodic_sample(dir.path(), &analysis, &["--recipe", file.to_str().unwrap()], false);
+    }
+}
+
+/// Asserts `synth` with the recipe flags `how` reproduces the checker of [`analysed`];
+/// `rounds`: the recipe matches round neighbourhoods.
 fn reproduces_the_periodic_sample(
     dir: &std::path::Path,
     analysis: &std::path::Path,
-    preset: &btfsynth::synth::Preset,
+    how: &[&str],
+    rounds: bool,
 ) {
-    let (rounds, preset) = (preset.rounds(), preset.name);
-    let plane = dir.join(format!("plane-{preset}"));
-    let report = dir.join(format!("report-{preset}.json"));
-    let r = btfsynth(&[
-        "-q",
-        "synth",
-        analysis.to_str().unwrap(),
-        "--plane",
-        "64x48",
-        "--preset",
-        preset,
-        "-o",
-        plane.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-    ]);
+    // A preset's name, or a recipe file's stem.
+    let tag = std::path::Path::new(how[1]).file_stem().unwrap().to_str().unwrap();
+    let plane = dir.join(format!("plane-{tag}"));
+    let report = dir.join(format!("report-{tag}.json"));
+    let r = btfsynth(
+        &[
+            &["-q", "synth", analysis.to_str().unwrap(), "--plane", "64x48"][..],
+            how,
+            &["-o", plane.to_str().unwrap(), "--report", report.to_str().unwrap()],
+        ]
+        .concat(),
+    );
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let q = eval(analysis, &plane);
     assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
@@ -98,7 +114,7 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
     let a = common::analyze_gravel_crop(dir.path(), "a");
     for preset in btfsynth::synth::Preset::all() {
         let run = |name: &str, seed: &str| {
-            let out = dir.path().join(format!("{}-{name}", preset.name));
+            let out = dir.path().join(format!("{}-{name}", preset.name.as_str()));
             let r = btfsynth(&[
                 "-q",
                 "synth",
@@ -106,7 +122,7 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
                 "--plane",
                 "40x40",
                 "--preset",
-                preset.name,
+                preset.name.as_str(),
                 "--seed",
                 seed,
                 "-o",
@@ -115,8 +131,8 @@ fn same_seed_same_bytes_and_other_seeds_differ() {
             assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
             (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap())
         };
-        assert_eq!(run("one", "3"), run("two", "3"), "{}", preset.name);
-        assert_ne!(run("three", "3").1, run("four", "4").1, "{}", preset.name);
+        assert_eq!(run("one", "3"), run("two", "3"), "{}", preset.name.as_str());
+        assert_ne!(run("three", "3").1, run("four", "4").1, "{}", preset.name.as_str());
     }
 }
 

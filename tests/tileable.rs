@@ -99,10 +99,10 @@ fn tileable_planes_join_without_a_seam_on_the_bundled_photograph() {
     let analysis = common::analyze_gravel(dir.path(), "gravel", "0,0,96,96");
     for preset in btfsynth::synth::Preset::all() {
         if preset.check_tileable(true).is_err() {
-            refuses_tileable_output(&analysis, dir.path(), preset.name);
+            refuses_tileable_output(&analysis, dir.path(), &preset.name);
             continue;
         }
-        check_seams(&analysis, dir.path(), "gravel", preset.name);
+        check_seams(&analysis, dir.path(), "gravel", preset.name.as_str());
     }
 }
 
@@ -117,7 +117,7 @@ fn tileable_planes_join_without_a_seam_on_shared_photographs() {
         let analysis = dir.path().join(name);
         let r = btfsynth(&["-q", "analyze", s(&path), "--crop", "0,0,96,96", "-o", s(&analysis)]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        check_seams(&analysis, dir.path(), name, btfsynth::synth::Preset::appearance().name);
+        check_seams(&analysis, dir.path(), name, &btfsynth::synth::Preset::appearance().name);
     }
 }
 

@@ -8,7 +8,7 @@ use crate::synth::plane::{synthesize_plane, write_plane};
 use crate::synth::surface_map::{
     build_pyramid, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
 };
-use crate::synth::{LevelReport, Preset, Sample, Search, SynthParams};
+use crate::synth::{LevelReport, MetricKind, Preset, Sample, Search, SynthParams};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -88,6 +88,12 @@ pub struct SynthArgs {
     /// recipe is recorded in the output. See --list-presets.
     #[arg(long, default_value = "appearance")]
     preset: String,
+    /// Run the recipe in this JSON file instead of a preset: the form `synth` records as
+    /// `params.recipe` in plane.json, the PLY header and --report (copy that object out and
+    /// edit it). Its passes may match with the Colour metric (SSD of the sample's linear
+    /// RGB), which only a recipe reaches. README, Recipes, lists every value.
+    #[arg(long, value_name = "FILE.json", conflicts_with = "preset")]
+    recipe: Option<PathBuf>,
     /// Print one line per preset (its name and paper) and exit.
     #[arg(long)]
     list_presets: bool,
@@ -141,13 +147,20 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if k > manifest.k {
         return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
     }
-    let sample = Sample::open(&analysis, levels)?;
+    let mut sample = Sample::open(&analysis, levels)?;
     let search = match args.search {
         SearchKind::Kcoherence => Search::KCoherence { k },
         SearchKind::Full => Search::Full,
     };
-    let preset = Preset::by_name(&args.preset).map_err(usage)?;
-    // Before any remeshing: a refused search is a usage error.
+    let preset = match &args.recipe {
+        Some(file) => read_recipe(file)?,
+        None => Preset::by_name(&args.preset).map_err(usage)?,
+    };
+    if preset.uses(MetricKind::Colour) {
+        sample.load_colours(&analysis)?;
+    }
+    preset.check_sample(&sample.levels).map_err(usage)?;
+    // Before any remeshing: a refused search or tiling is a usage error.
     preset.check_search(search).map_err(usage)?;
     preset.check_tileable(args.tileable_output).map_err(usage)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
@@ -187,6 +200,13 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// The recipe in `file` (see `--recipe`), checked; any problem is a usage error naming the file.
+fn read_recipe(file: &Path) -> Result<Preset> {
+    let text = std::fs::read_to_string(file)
+        .map_err(|e| usage(format!("--recipe {}: cannot read it: {e}", file.display())))?;
+    Preset::from_json(&text).map_err(|e| usage(format!("--recipe {}: {e}", file.display())))
 }
 
 /// The view/light pairs asked for with --view/--light (empty: the defaults).

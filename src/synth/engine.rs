@@ -17,7 +17,7 @@ pub struct State {
 }
 
 /// Order in which a pass visits the vertices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum VisitOrder {
     /// A fresh seeded permutation every pass.
     Random,
@@ -40,7 +40,8 @@ pub struct PassStats {
 }
 
 /// How a vertex picks among its candidates.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Select {
     /// The smallest distance (Tong §5.1).
     Argmin,
@@ -325,6 +326,7 @@ pub(crate) mod tests {
             k,
             tileable: true,
             appearance: None,
+            colour: None,
         }
     }
 

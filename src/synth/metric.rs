@@ -7,6 +7,8 @@
 //! - [`AppearanceMetric`] (beyond the paper, after Lefebvre and Hoppe 2006): template pixels
 //!   are the barycentric blend of the vertices' appearance vectors, compared by plain SSD
 //!   with the sample's vectors. Continuous, so neighbourhoods do not tie on quantized labels.
+//!   The colour metric ([`super::MetricKind::Colour`], Turk's colour SSD) is the same
+//!   distance over a map of the sample's linear RGB ([`super::SampleLevel::colour`]).
 
 use super::engine::State;
 use super::sample::{AppearanceMap, SampleLevel};
@@ -180,5 +182,44 @@ impl Metric for AppearanceMetric<'_> {
             }
         }
         d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::target::grid_levels;
+
+    /// The colour metric (SSD of linear RGB, through an [`AppearanceMap`] of three
+    /// dimensions): zero for an exact copy, and growing with a colour change.
+    #[test]
+    fn colour_distance_is_zero_for_a_copy_and_grows_with_the_colour_change() {
+        let (w, h) = (16usize, 16usize);
+        // A ramp: texel (x, y) has red x/16, so moving a coordinate by d changes red by d/16.
+        let colours: Vec<f32> =
+            (0..w * h).flat_map(|p| [(p % w) as f32 / 16.0, (p / w) as f32 / 16.0, 0.5]).collect();
+        let map = AppearanceMap::new(w, h, 3, &colours, false);
+        let metric = AppearanceMetric { map: &map, template: 7 };
+        let level = &grid_levels(w, h, 1, 7, 3)[0];
+        let copy = State {
+            labels: vec![0; w * h],
+            uv: (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect(),
+        };
+        let (v, centre) = (8 * w + 8, (8i64, 8i64));
+        let distance = |state: &State| {
+            let (mut slots, mut query) = (Vec::new(), Vectors::default());
+            metric.prepare(level.slots_of(v, &mut slots), state, None, &mut query);
+            metric.cost(&query, centre.0, centre.1, f32::INFINITY)
+        };
+        assert_eq!(distance(&copy), 0.0, "an exact copy");
+        let shifted = |d: i32| {
+            let mut s = copy.clone();
+            s.uv[v + 1][0] += d;
+            distance(&s)
+        };
+        let ds: Vec<f32> = [1, 2, 4].into_iter().map(shifted).collect();
+        assert!(ds[0] > 0.0 && ds[0] < ds[1] && ds[1] < ds[2], "{ds:?}");
+        // Squared: twice the colour change costs four times as much.
+        assert!((ds[1] / ds[0] - 4.0).abs() < 1e-3, "{ds:?}");
     }
 }

@@ -94,18 +94,9 @@ pub fn synthesize(
         return Err(Error::invalid("synthesis needs one target level per sample level"));
     }
     let preset = &params.preset;
-    if preset.coarsest.start == Start::Inherit {
-        return Err(Error::invalid(format!("preset '{}': the coarsest level cannot inherit", preset.name)));
-    }
+    preset.validate()?;
     preset.check_search(params.search)?;
-    let uses_appearance =
-        preset.coarsest.passes.iter().chain(&preset.finer.passes).any(|p| p.metric.needs_appearance());
-    if uses_appearance && sample.levels[..targets.len()].iter().any(|l| l.appearance.is_none()) {
-        return Err(Error::invalid(format!(
-            "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
-            preset.name
-        )));
-    }
+    preset.check_sample(&sample.levels[..targets.len()])?;
     let levels = &sample.levels[..targets.len()];
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let sweep = preset.sweeps().then(|| sweep::sweep_distances(targets, params.seed));
@@ -199,6 +190,10 @@ fn run_pass(
         MetricKind::Appearance => run_pass_with(p, inputs, state, params, order, rng, |s, t| {
             AppearanceMetric { map: s.appearance.as_ref().expect("checked in synthesize"), template: t }
         }),
+        MetricKind::Colour => run_pass_with(p, inputs, state, params, order, rng, |s, t| AppearanceMetric {
+            map: s.colour.as_ref().expect("checked in synthesize"),
+            template: t,
+        }),
         MetricKind::Adaptive => {
             let (round, round_sample) = inputs.rounds.expect("built for every level with an adaptive pass");
             let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
@@ -261,6 +256,10 @@ fn patches(
         }
         MetricKind::Appearance => {
             let map = sample.appearance.as_ref().expect("checked in synthesize");
+            start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
+        }
+        MetricKind::Colour => {
+            let map = sample.colour.as_ref().expect("checked in synthesize");
             start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
         }
         MetricKind::Adaptive => {

@@ -5,10 +5,11 @@
 
 use super::candidates::Search;
 use super::engine::{Select, VisitOrder};
+use super::sample::SampleLevel;
 use crate::{Error, Result};
 
 /// The neighbourhood distance a pass matches with.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum MetricKind {
     /// Surface textons through Γ (Tong §5.1).
     Gamma,
@@ -16,6 +17,12 @@ pub enum MetricKind {
     /// them. For a photograph they are its colour neighbourhoods reduced by PCA, the
     /// nearest the engine has to Turk's colour SSD.
     Appearance,
+    /// Turk's colour SSD: the sample's linear RGB per texel, compared by plain SSD. For a
+    /// BTF, the mean of the analysis' selected images; every level's colours are that mean
+    /// taken down the analysis' own pyramid, centred and scaled to unit variance like the
+    /// appearance vectors (so that levels weigh alike in two-level distances). Built only
+    /// when a recipe uses it ([`super::Sample::load_colours`]).
+    Colour,
     /// Chen and Dong 2008 §5: round neighbourhoods of appearance vectors compared by the
     /// adaptive metric ([`super::adaptive`], [`super::round_pass`]). Such a pass ignores
     /// the parent neighbourhood field (the linked pixels enter through the inherited
@@ -23,15 +30,9 @@ pub enum MetricKind {
     Adaptive,
 }
 
-impl MetricKind {
-    /// Whether the metric reads the sample's appearance vectors.
-    pub fn needs_appearance(self) -> bool {
-        matches!(self, MetricKind::Appearance | MetricKind::Adaptive)
-    }
-}
-
 /// How a level's map starts before its passes.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Start {
     /// Every vertex a random texel (Tong §5.1, Turk §5.2).
     Random,
@@ -44,7 +45,7 @@ pub enum Start {
 }
 
 /// Which of the level's own template pixels a pass compares.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Mask {
     /// Every pixel: Turk's full square F(n, 0), Tong's template.
     Full,
@@ -61,7 +62,7 @@ pub enum Mask {
 }
 
 /// The coarser level's neighbourhood joining a pass's distance.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ParentNeighbourhood {
     /// No parent neighbourhood.
     None,
@@ -73,7 +74,7 @@ pub enum ParentNeighbourhood {
 }
 
 /// Where a pass's candidates come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Candidates {
     /// The search given to `synth` (`--search`: k-coherence by default, or full).
     Search,
@@ -82,7 +83,8 @@ pub enum Candidates {
 }
 
 /// One pass over a level.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Pass {
     /// Visiting order.
     pub order: VisitOrder,
@@ -102,18 +104,23 @@ pub struct Pass {
 }
 
 /// How one level is synthesized: its start, then its passes in order.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LevelRecipe {
+    /// How the level's map starts.
     pub start: Start,
+    /// The passes over the level, in order (at least one).
     pub passes: Vec<Pass>,
 }
 
 /// A named recipe: the coarsest level's, then the one every finer level follows.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Preset {
-    pub name: &'static str,
+    /// The name `--preset` knows it by (for a recipe read from a file, whatever it says).
+    pub name: String,
     /// The paper the preset follows, for `--list-presets`.
-    pub paper: &'static str,
+    pub paper: String,
     /// The coarsest level (its start may not be [`Start::Inherit`]).
     pub coarsest: LevelRecipe,
     /// Every finer level.
@@ -158,8 +165,8 @@ impl Preset {
             coherence_bias: 0.5,
         };
         Preset {
-            name,
-            paper,
+            name: name.into(),
+            paper: paper.into(),
             coarsest: LevelRecipe {
                 start: Start::Patches { radius: 0.35 },
                 passes: vec![pass(ParentNeighbourhood::None); 4],
@@ -184,8 +191,8 @@ impl Preset {
             coherence_bias: 0.5,
         };
         Preset {
-            name: "turk2001",
-            paper: "Turk, Texture Synthesis on Surfaces, SIGGRAPH 2001",
+            name: "turk2001".into(),
+            paper: "Turk, Texture Synthesis on Surfaces, SIGGRAPH 2001".into(),
             coarsest: LevelRecipe {
                 start: Start::Random,
                 passes: vec![pass(Mask::Half, ParentNeighbourhood::None)],
@@ -216,8 +223,8 @@ impl Preset {
             coherence_bias: 0.5,
         };
         Preset {
-            name: "chen2008",
-            paper: "Chen and Dong, Adaptive Surface Texture Synthesis Using Round-Shaped Neighbourhoods, CGF 2008",
+            name: "chen2008".into(),
+            paper: "Chen and Dong, Adaptive Surface Texture Synthesis Using Round-Shaped Neighbourhoods, CGF 2008".into(),
             coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Mask::Visited), pass(Mask::Full)] },
             finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(Mask::Full)] },
         }
@@ -225,7 +232,7 @@ impl Preset {
 
     /// Whether any pass matches round neighbourhoods (which need a marching on meshes).
     pub fn rounds(&self) -> bool {
-        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.metric == MetricKind::Adaptive)
+        self.uses(MetricKind::Adaptive)
     }
 
     /// Refuses a search the recipe cannot run well: adaptive passes take their candidates
@@ -269,7 +276,7 @@ impl Preset {
     /// Presets by name, for `--preset`.
     pub fn by_name(name: &str) -> Result<Self> {
         Self::all().into_iter().find(|p| p.name == name).ok_or_else(|| {
-            let names: Vec<&str> = Self::all().iter().map(|p| p.name).collect();
+            let names: Vec<String> = Self::all().into_iter().map(|p| p.name).collect();
             Error::invalid(format!("unknown preset '{name}': available: {}", names.join(", ")))
         })
     }
@@ -284,10 +291,106 @@ impl Preset {
         self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.order == VisitOrder::Sweep)
     }
 
-    /// The whole recipe as JSON, for the outputs.
-    pub fn to_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+    /// Whether any pass matches with `metric`.
+    pub fn uses(&self, metric: MetricKind) -> bool {
+        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.metric == metric)
     }
+
+    /// A recipe from JSON in the form [`Self::to_json`] writes (the `recipe` object `synth`
+    /// records), checked with [`Self::validate`].
+    pub fn from_json(text: &str) -> Result<Self> {
+        let preset: Preset = serde_json::from_str(text).map_err(|e| Error::invalid(e.to_string()))?;
+        preset.validate()?;
+        Ok(preset)
+    }
+
+    /// Refuses a recipe the engine cannot run as written: a coarsest level that inherits
+    /// (it has no parent), a level without passes, a parent neighbourhood on the coarsest
+    /// level, a pass that compares nothing (mask off without a parent neighbourhood), and
+    /// numbers out of range.
+    pub fn validate(&self) -> Result<()> {
+        let refuse = |what: String| Err(Error::invalid(format!("recipe '{}': {what}", self.name)));
+        if self.coarsest.start == Start::Inherit {
+            return refuse("the coarsest level cannot inherit (it has no coarser level)".into());
+        }
+        for (level, recipe) in [("coarsest", &self.coarsest), ("finer", &self.finer)] {
+            if recipe.passes.is_empty() {
+                return refuse(format!("the {level} level has no passes (give at least one)"));
+            }
+            if let Start::Patches { radius } = recipe.start {
+                if !(radius.is_finite() && radius > 0.0) {
+                    return refuse(format!(
+                        "the {level} level's patch radius must be positive, not {radius}"
+                    ));
+                }
+            }
+            if matches!(recipe.start, Start::Patches { .. })
+                && recipe.passes[0].metric == MetricKind::Adaptive
+            {
+                return refuse(format!(
+                    "the {level} level's patches are seamed by its first pass, which must match square templates, not Adaptive"
+                ));
+            }
+            for (i, pass) in recipe.passes.iter().enumerate() {
+                pass_problem(pass, level == "coarsest")
+                    .map_or(Ok(()), |why| refuse(format!("{level} pass {i}: {why}")))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a recipe whose metrics need what `levels` lack: appearance vectors (analyses
+    /// written before they existed) or colours (not loaded with
+    /// [`super::Sample::load_colours`]).
+    pub fn check_sample(&self, levels: &[SampleLevel]) -> Result<()> {
+        let needs_appearance = self.uses(MetricKind::Appearance) || self.uses(MetricKind::Adaptive);
+        if needs_appearance && levels.iter().any(|l| l.appearance.is_none()) {
+            return Err(Error::invalid(format!(
+                "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
+                self.name
+            )));
+        }
+        if self.uses(MetricKind::Colour) && levels.iter().any(|l| l.colour.is_none()) {
+            return Err(Error::invalid(format!(
+                "recipe '{}' matches colours, which Sample::load_colours builds",
+                self.name
+            )));
+        }
+        Ok(())
+    }
+
+    /// The whole recipe as JSON, for the outputs. Numbers are written as their f32 reads
+    /// (0.3, not `to_value`'s widened 0.30000001192092896), so that a recipe copied out for
+    /// editing reads as it was written.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_string(self)
+            .and_then(|text| serde_json::from_str(&text))
+            .unwrap_or(serde_json::Value::Null)
+    }
+}
+
+/// Why the engine cannot run `pass` as written, if it cannot.
+fn pass_problem(pass: &Pass, coarsest: bool) -> Option<String> {
+    if coarsest && pass.parent != ParentNeighbourhood::None {
+        return Some("the coarsest level has no parent neighbourhood (parent must be None)".into());
+    }
+    if pass.mask == Mask::Off && pass.parent == ParentNeighbourhood::None {
+        return Some("mask Off compares nothing without a parent neighbourhood".into());
+    }
+    if pass.metric == MetricKind::Adaptive && !matches!(pass.mask, Mask::Visited | Mask::Full) {
+        return Some(
+            "an Adaptive pass compares visited vertices or all of them (mask Visited or Full)".into(),
+        );
+    }
+    if let Select::Choosy { strength } = pass.select {
+        if !(strength.is_finite() && strength >= 0.0) {
+            return Some(format!("the Choosy strength must be at least 0, not {strength}"));
+        }
+    }
+    if !(pass.coherence_bias.is_finite() && pass.coherence_bias >= 0.0) {
+        return Some(format!("coherence_bias must be at least 0, not {}", pass.coherence_bias));
+    }
+    None
 }
 
 /// The candidate search of a pass, given the one asked of `synth`.
@@ -311,6 +414,7 @@ mod tests {
         assert_eq!(json["finer"]["passes"][0]["parent"], "Wide");
         assert_eq!(json["finer"]["passes"][1]["order"], "Sweep");
         assert_eq!(Preset::appearance().to_json()["finer"]["passes"].as_array().unwrap().len(), 2);
+        assert_eq!(json["finer"]["passes"][1]["select"]["Choosy"]["strength"], 0.3);
         let chen = Preset::chen2008().to_json();
         assert_eq!(chen["coarsest"]["passes"][0]["metric"], "Adaptive");
         assert_eq!(chen["coarsest"]["passes"][0]["mask"], "Visited");
@@ -322,7 +426,7 @@ mod tests {
     fn names_are_unique_and_found() {
         let all = Preset::all();
         for p in &all {
-            assert_eq!(Preset::by_name(p.name).unwrap(), *p);
+            assert_eq!(Preset::by_name(&p.name).unwrap(), *p);
             assert_eq!(all.iter().filter(|q| q.name == p.name).count(), 1);
             assert_ne!(p.coarsest.start, Start::Inherit, "{}: the coarsest level has no parent", p.name);
         }
@@ -333,5 +437,58 @@ mod tests {
         assert!(Preset::chen2008().check_tileable(true).is_err());
         assert!(Preset::chen2008().check_tileable(false).is_ok());
         assert!(Preset::appearance().check_tileable(true).is_ok());
+    }
+
+    #[test]
+    fn every_preset_reads_back_from_its_recorded_json() {
+        for p in Preset::all() {
+            let text = serde_json::to_string_pretty(&p.to_json()).unwrap();
+            assert_eq!(Preset::from_json(&text).unwrap(), p, "{text}");
+        }
+    }
+
+    /// A recipe the engine cannot run is refused with a message that says what is wrong.
+    #[test]
+    fn recipes_the_engine_cannot_run_are_refused() {
+        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
+            let mut p = Preset::appearance();
+            edit(&mut p);
+            let text = p.to_json().to_string();
+            let e = Preset::from_json(&text).expect_err(needle).to_string();
+            assert!(e.contains(needle), "{e}");
+        };
+        refused(&|p| p.coarsest.start = Start::Inherit, "coarsest level cannot inherit");
+        refused(&|p| p.finer.passes.clear(), "finer level has no passes");
+        refused(&|p| p.coarsest.passes.clear(), "coarsest level has no passes");
+        refused(&|p| p.coarsest.passes[1].parent = ParentNeighbourhood::Wide, "coarsest pass 1");
+        refused(
+            &|p| {
+                p.finer.passes[0] =
+                    Pass { mask: Mask::Off, parent: ParentNeighbourhood::None, ..p.finer.passes[0] }
+            },
+            "mask Off compares nothing",
+        );
+        refused(&|p| p.finer.passes[1].coherence_bias = -1.0, "coherence_bias");
+        refused(&|p| p.finer.passes[1].select = Select::Choosy { strength: -0.5 }, "strength");
+        refused(&|p| p.coarsest.start = Start::Patches { radius: 0.0 }, "patch radius");
+    }
+
+    /// Bad JSON is refused with serde's message, which names the field.
+    #[test]
+    fn malformed_recipes_name_the_field() {
+        let mut json = Preset::tong2002().to_json();
+        json["finer"]["passes"][0]["metric"] = "Colour".into();
+        assert_eq!(Preset::from_json(&json.to_string()).unwrap().finer.passes[0].metric, MetricKind::Colour);
+        json["finer"]["passes"][0]["metric"] = "Colr".into();
+        let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
+        assert!(e.contains("Colr") && e.contains("Colour"), "{e}");
+        json["finer"]["passes"][0]["metric"] = "Colour".into();
+        json["finer"]["passes"][0]["masks"] = "Full".into();
+        let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
+        assert!(e.contains("masks"), "{e}");
+        json["finer"]["passes"][0].as_object_mut().unwrap().remove("masks");
+        json["finer"]["passes"][0].as_object_mut().unwrap().remove("order");
+        let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
+        assert!(e.contains("missing field `order`"), "{e}");
     }
 }

@@ -2,7 +2,7 @@
 //! read from an analysis directory.
 
 use crate::analysis::npy;
-use crate::analysis::store::{read_manifest, Manifest};
+use crate::analysis::store::{read_manifest, Manifest, MANIFEST};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -24,6 +24,9 @@ pub struct SampleLevel {
     pub tileable: bool,
     /// Per-pixel appearance vectors, if the analysis has them (written since they exist).
     pub appearance: Option<AppearanceMap>,
+    /// Per-pixel linear RGB for [`super::MetricKind::Colour`], once
+    /// [`Sample::load_colours`] has built it.
+    pub colour: Option<AppearanceMap>,
 }
 
 /// One level's appearance vectors, scaled to unit total variance per pixel (so that levels
@@ -146,12 +149,47 @@ impl Sample {
                 knn_two_level,
                 tileable: manifest.params.tileable,
                 appearance,
+                colour: None,
             };
             level.check().map_err(|m| Error::format(dir.join(&info.files.textons), m))?;
             Ok(level)
         };
         let levels = manifest.levels[..levels].iter().map(read_level).collect::<Result<_>>()?;
         Ok(Sample { levels, manifest })
+    }
+
+    /// Builds every level's colours for [`super::MetricKind::Colour`] from the analysis in
+    /// `dir`: the mean of the selected images (the photograph itself for a one-image BTF),
+    /// taken down the pyramid the analysis built its levels with. Read only when a recipe
+    /// matches colours, since a BTF's images are large.
+    pub fn load_colours(&mut self, dir: &Path) -> Result<()> {
+        let images = crate::analysis::images::SampleImages::open(dir)?;
+        let (w, h) = (self.manifest.width, self.manifest.height);
+        let selected = &self.manifest.selected;
+        if (images.width, images.height) != (w, h) || selected.iter().any(|&i| i >= images.len()) {
+            return Err(Error::format(dir.join("images.npy"), "the images do not match analysis.json"));
+        }
+        let mut mean = vec![0.0f32; w * h * 3];
+        for &i in selected {
+            for (p, rgb) in mean.chunks_exact_mut(3).enumerate() {
+                let c = images.rgb(i, p % w, p / w);
+                rgb.iter_mut().zip(c).for_each(|(m, v)| *m += v / selected.len() as f32);
+            }
+        }
+        let tileable = self.manifest.params.tileable;
+        let (mut colours, mut size) = (mean, (w, h));
+        for level in &mut self.levels {
+            if (level.width, level.height) != size {
+                let (down, dw, dh) =
+                    crate::analysis::pyramid::downsample(&colours, size.0, size.1, 3, tileable);
+                (colours, size) = (down, (dw, dh));
+            }
+            if (level.width, level.height) != size {
+                return Err(Error::format(dir.join(MANIFEST), "the level sizes do not halve"));
+            }
+            level.colour = Some(AppearanceMap::new(size.0, size.1, 3, &colours, tileable));
+        }
+        Ok(())
     }
 }
 

@@ -86,3 +86,26 @@ pub fn analyze_gravel(dir: &Path, name: &str, crop: &str) -> std::path::PathBuf 
 
 /// The bundled 1,839-vertex Stanford bunny.
 pub const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+
+/// The presets whose passes match square templates, the ones [`colour_recipe`] recolours
+/// (round-neighbourhood passes compare appearance vectors only).
+pub fn square_presets() -> Vec<btfsynth::synth::Preset> {
+    btfsynth::synth::Preset::all().into_iter().filter(|p| !p.rounds()).collect()
+}
+
+/// `preset` with every pass matched on colour SSD (`MetricKind::Colour`, reached only
+/// through `synth --recipe`), named `<preset>-colour`.
+pub fn colour_recipe(preset: &btfsynth::synth::Preset) -> btfsynth::synth::Preset {
+    let mut p = preset.clone();
+    p.name = format!("{}-colour", p.name);
+    for pass in p.coarsest.passes.iter_mut().chain(&mut p.finer.passes) {
+        pass.metric = btfsynth::synth::MetricKind::Colour;
+    }
+    p
+}
+
+/// Writes `preset` where `synth --recipe` reads it, as `synth` records it.
+pub fn write_recipe(path: &Path, preset: &btfsynth::synth::Preset) -> std::path::PathBuf {
+    std::fs::write(path, serde_json::to_string_pretty(&preset.to_json()).unwrap()).unwrap();
+    path.to_path_buf()
+}

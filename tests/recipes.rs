@@ -1,0 +1,249 @@
+//! `synth --recipe FILE`: a recipe in the form `synth` records runs exactly like the preset
+//! it came from, a hand-edited one runs and is recorded as given, and a recipe the engine
+//! cannot run is refused with one line.
+
+mod common;
+
+use btfsynth::synth::{Mask, ParentNeighbourhood, Preset};
+use common::{assert_usage_error, btfsynth, entries};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn run_ok(args: &[&str]) {
+    let r = btfsynth(args);
+    assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+}
+
+fn write_json(path: &Path, json: &Value) -> PathBuf {
+    std::fs::write(path, serde_json::to_string_pretty(json).unwrap()).unwrap();
+    path.to_path_buf()
+}
+
+/// A plane's labels and coordinates, byte for byte, and its manifest.
+fn plane_bytes(out: &Path) -> (Vec<u8>, Vec<u8>, Value) {
+    let manifest = serde_json::from_slice(&std::fs::read(out.join("plane.json")).unwrap()).unwrap();
+    (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap(), manifest)
+}
+
+/// Every preset, recorded by `synth`, copied out of plane.json and given back with
+/// --recipe, gives the same bytes.
+#[test]
+fn every_recorded_recipe_gives_back_its_presets_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    for preset in Preset::all() {
+        let name = preset.name.as_str();
+        let by_name = dir.path().join(format!("{name}-preset"));
+        run_ok(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            "--plane",
+            "40x32",
+            "--preset",
+            name,
+            "--seed",
+            "5",
+            "-o",
+            s(&by_name),
+        ]);
+        let (labels, uv, manifest) = plane_bytes(&by_name);
+        let file = write_json(&dir.path().join(format!("{name}.json")), &manifest["params"]["recipe"]);
+        let by_recipe = dir.path().join(format!("{name}-recipe"));
+        run_ok(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            "--plane",
+            "40x32",
+            "--recipe",
+            s(&file),
+            "--seed",
+            "5",
+            "-o",
+            s(&by_recipe),
+        ]);
+        let (labels2, uv2, manifest2) = plane_bytes(&by_recipe);
+        assert!(labels == labels2 && uv == uv2, "{name}: the recipe's output differs from the preset's");
+        assert_eq!(manifest2["params"]["recipe"], manifest["params"]["recipe"], "{name}");
+        assert_eq!(manifest2["params"]["preset"], name);
+    }
+}
+
+/// The default with one coarsest pass less, renamed: it runs, differs from the default, and
+/// plane.json, --report and a PLY header record it as given.
+#[test]
+fn a_hand_edited_recipe_runs_and_is_recorded_as_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let mut recipe = Preset::appearance().to_json();
+    recipe["name"] = "three-coarse-passes".into();
+    recipe["coarsest"]["passes"].as_array_mut().unwrap().pop();
+    let file = write_json(&dir.path().join("edited.json"), &recipe);
+    let (out, default, report) =
+        (dir.path().join("edited"), dir.path().join("default"), dir.path().join("report.json"));
+    let args = ["-q", "synth", s(&analysis), "--plane", "40x32", "--seed", "5"];
+    run_ok(&[&args[..], &["--recipe", s(&file), "-o", s(&out), "--report", s(&report)]].concat());
+    run_ok(&[&args[..], &["-o", s(&default)]].concat());
+    let (labels, uv, manifest) = plane_bytes(&out);
+    assert_eq!(manifest["params"]["recipe"], recipe);
+    assert_eq!(manifest["params"]["preset"], "three-coarse-passes");
+    let report: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(report["params"]["recipe"], recipe);
+    assert_eq!(report["levels"][0]["passes"], 3, "the coarsest level ran the passes given: {report}");
+    let (default_labels, default_uv, _) = plane_bytes(&default);
+    assert!(labels != default_labels || uv != default_uv, "the edited recipe was not the one run");
+
+    let ply = dir.path().join("bunny.ply");
+    run_ok(&[
+        "-q",
+        "synth",
+        s(&analysis),
+        common::BUNNY,
+        "--vertices",
+        "3000",
+        "--recipe",
+        s(&file),
+        "-o",
+        s(&ply),
+    ]);
+    let map = btfsynth::synth::surface_map::read_surface_ply(&ply).unwrap();
+    let params: Value = serde_json::from_str(map.comment("params").unwrap()).unwrap();
+    assert_eq!(params["recipe"], recipe);
+}
+
+/// Each recipe the engine cannot run: one `error:` line naming the file and the problem,
+/// exit 2, nothing written.
+#[test]
+fn bad_recipes_are_refused_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let out = dir.path().join("out");
+    let synth = |recipe: &Path| {
+        btfsynth(&["synth", s(&analysis), "--plane", "16x16", "--recipe", s(recipe), "-o", s(&out)])
+    };
+    let edited = |name: &str, edit: &dyn Fn(&mut Value)| {
+        let mut recipe = Preset::appearance().to_json();
+        edit(&mut recipe);
+        write_json(&dir.path().join(name), &recipe)
+    };
+    assert_usage_error(&synth(&dir.path().join("missing.json")), "missing.json: cannot read it");
+    let broken = dir.path().join("broken.json");
+    std::fs::write(&broken, "{\"name\": \"x\",").unwrap();
+    assert_usage_error(&synth(&broken), "broken.json: EOF while parsing");
+    let typo = edited("typo.json", &|r| r["finer"]["passes"][0]["metrc"] = "Colour".into());
+    assert_usage_error(&synth(&typo), "unknown field `metrc`");
+    let variant = edited("variant.json", &|r| r["finer"]["passes"][0]["metric"] = "Color".into());
+    assert_usage_error(&synth(&variant), "unknown variant `Color`");
+    let inherits = edited("inherits.json", &|r| r["coarsest"]["start"] = "Inherit".into());
+    assert_usage_error(&synth(&inherits), "the coarsest level cannot inherit");
+    let empty = edited("empty.json", &|r| r["finer"]["passes"] = Value::Array(vec![]));
+    assert_usage_error(&synth(&empty), "the finer level has no passes");
+    let blind = edited("blind.json", &|r| {
+        r["finer"]["passes"][0]["mask"] = serde_json::to_value(Mask::Off).unwrap();
+        r["finer"]["passes"][0]["parent"] = serde_json::to_value(ParentNeighbourhood::None).unwrap();
+    });
+    assert_usage_error(&synth(&blind), "finer pass 0: mask Off compares nothing");
+    let orphan = edited("orphan.json", &|r| r["coarsest"]["passes"][0]["parent"] = "Narrow".into());
+    assert_usage_error(&synth(&orphan), "the coarsest level has no parent neighbourhood");
+    let both = btfsynth(&[
+        "synth",
+        s(&analysis),
+        "--plane",
+        "16x16",
+        "--recipe",
+        s(&typo),
+        "--preset",
+        "tong2002",
+        "-o",
+        s(&out),
+    ]);
+    assert_usage_error(&both, "--preset");
+
+    // An analysis written before appearance vectors existed cannot feed that metric.
+    let old = dir.path().join("old");
+    std::fs::create_dir(&old).unwrap();
+    for entry in std::fs::read_dir(&analysis).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, old.join(path.file_name().unwrap())).unwrap();
+    }
+    let mut manifest: Value =
+        serde_json::from_slice(&std::fs::read(old.join("analysis.json")).unwrap()).unwrap();
+    for level in manifest["levels"].as_array_mut().unwrap() {
+        level["files"].as_object_mut().unwrap().remove("appearance");
+    }
+    write_json(&old.join("analysis.json"), &manifest);
+    let fine = write_json(&dir.path().join("fine.json"), &Preset::appearance().to_json());
+    let r = btfsynth(&["synth", s(&old), "--plane", "16x16", "--recipe", s(&fine), "-o", s(&out)]);
+    assert_usage_error(&r, "appearance vectors, which this analysis lacks");
+    let mut names = entries(dir.path());
+    names.retain(|n| !n.ends_with(".json"));
+    assert_eq!(names, ["analysis", "old"], "nothing written");
+}
+
+/// The colour metric reached through a recipe: every preset's schedule matched on colour
+/// SSD runs on a plane (both searches) and on a mesh, and an analysis of a BTF builds its
+/// colours from the mean of its selected images.
+#[test]
+fn colour_recipes_run_on_planes_meshes_and_btfs() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    for preset in common::square_presets() {
+        let file = write_json(
+            &dir.path().join(format!("{}.json", preset.name)),
+            &common::colour_recipe(&preset).to_json(),
+        );
+        for search in ["kcoherence", "full"] {
+            let out = dir.path().join(format!("{}-{search}", preset.name));
+            run_ok(&[
+                "-q",
+                "synth",
+                s(&analysis),
+                "--plane",
+                "24x24",
+                "--recipe",
+                s(&file),
+                "--search",
+                search,
+                "-o",
+                s(&out),
+            ]);
+            assert_eq!(plane_bytes(&out).2["params"]["recipe"], common::colour_recipe(&preset).to_json());
+        }
+        let ply = dir.path().join(format!("{}.ply", preset.name));
+        run_ok(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            common::BUNNY,
+            "--vertices",
+            "3000",
+            "--recipe",
+            s(&file),
+            "-o",
+            s(&ply),
+        ]);
+        assert!(btfsynth::synth::surface_map::read_surface_ply(&ply).is_ok());
+    }
+    let stack = dir.path().join("pebbles");
+    run_ok(&["-q", "gen", "pebbles", "--size", "32", "--directions", "grid:3", "-o", s(&stack)]);
+    let btf = dir.path().join("btf-analysis");
+    run_ok(&["-q", "analyze", s(&stack), "--levels", "2", "-o", s(&btf)]);
+    let file =
+        write_json(&dir.path().join("btf.json"), &common::colour_recipe(&Preset::appearance()).to_json());
+    run_ok(&[
+        "-q",
+        "synth",
+        s(&btf),
+        "--plane",
+        "24x24",
+        "--recipe",
+        s(&file),
+        "-o",
+        s(&dir.path().join("btf-plane")),
+    ]);
+}
