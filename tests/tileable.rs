@@ -98,10 +98,6 @@ fn tileable_planes_join_without_a_seam_on_the_bundled_photograph() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = common::analyze_gravel(dir.path(), "gravel", "0,0,96,96");
     for preset in btfsynth::synth::Preset::all() {
-        if preset.check_tileable(true).is_err() {
-            refuses_tileable_output(&analysis, dir.path(), &preset.name);
-            continue;
-        }
         check_seams(&analysis, dir.path(), "gravel", preset.name.as_str());
     }
 }
@@ -125,24 +121,4 @@ fn tileable_planes_join_without_a_seam_on_shared_photographs() {
 fn tileable_output_needs_a_plane() {
     let r = btfsynth(&["synth", "a.analysis", common::BUNNY, "--tileable-output", "-o", "x.ply"]);
     common::assert_usage_error(&r, "--plane");
-}
-
-/// A preset that cannot make seamless tiles says so in one line and writes nothing.
-fn refuses_tileable_output(analysis: &Path, dir: &Path, preset: &str) {
-    let out = dir.join(format!("refused-{preset}"));
-    let args = [
-        "-q",
-        "synth",
-        s(analysis),
-        "--plane",
-        "64x64",
-        "--tileable-output",
-        "--preset",
-        preset,
-        "-o",
-        s(&out),
-    ];
-    let r = btfsynth(&args);
-    common::assert_usage_error(&r, "--tileable-output");
-    assert!(!out.exists());
 }

@@ -160,9 +160,8 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         sample.load_colours(&analysis)?;
     }
     preset.check_sample(&sample.levels).map_err(usage)?;
-    // Before any remeshing: a refused search or tiling is a usage error.
+    // Before any remeshing: a refused search is a usage error.
     preset.check_search(search).map_err(usage)?;
-    preset.check_tileable(args.tileable_output).map_err(usage)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,

@@ -11,11 +11,17 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
 /// The most-constrained-first order of `level`'s vertices. Ties go to the vertex whose
-/// count rose last (the front stays compact); a vertex with no visited neighbour (the first,
+/// count rose last (the front stays compact), in no preferred direction; a vertex with no visited neighbour (the first,
 /// and the first of every part the neighbourhoods do not connect) is drawn at random.
 pub fn most_constrained_order(level: &TargetLevel, rng: &mut ChaCha8Rng) -> Vec<u32> {
     let n = level.vertices;
-    let readers = readers(level);
+    let mut readers = readers(level);
+    // Ties go to the reader pushed last. In index order that favours growing towards higher
+    // indices, and on a wrapping grid the fronts then met along the wrap edge: the copies
+    // broke between rows 0 and 1 five times as often as elsewhere, and the edge of a
+    // tileable gravel plane scored 1.37x its whole (8 seeds); shuffled, 1.16x (12 seeds,
+    // the default preset 1.05x) with no row standing out.
+    readers.iter_mut().for_each(|r| r.shuffle(rng));
     let mut count = vec![0usize; n];
     let mut visited = vec![false; n];
     // buckets[c]: vertices queued with count c (stale entries are skipped when popped).

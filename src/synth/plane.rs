@@ -53,7 +53,6 @@ pub fn synthesize_plane(
             "--plane {width}x{height}: sides must be at least 1 and the area at most 2^26"
         )));
     }
-    params.preset.check_tileable(tiles)?;
     let targets = wrapping_grid_levels(
         width,
         height,

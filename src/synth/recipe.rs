@@ -254,20 +254,6 @@ impl Preset {
         Ok(())
     }
 
-    /// Refuses a wrapping plane (`--tileable-output`) for recipes with round-neighbourhood
-    /// passes: their results join worse across the wrap edge than anywhere else (on the
-    /// bundled gravel, 1.2-2.2x the whole result's patch energy per seed, against about 1x
-    /// for the square-template presets; tests/tileable.rs), a defect not yet understood.
-    pub fn check_tileable(&self, tileable: bool) -> Result<()> {
-        if tileable && self.rounds() {
-            return Err(Error::invalid(format!(
-                "--tileable-output: preset '{}' does not make seamless tiles yet (its wrap edge shows); use another preset",
-                self.name
-            )));
-        }
-        Ok(())
-    }
-
     /// Every preset, the default first.
     pub fn all() -> Vec<Self> {
         vec![Self::appearance(), Self::tong2002(), Self::turk2001(), Self::chen2008()]
@@ -434,9 +420,6 @@ mod tests {
         assert!(Preset::chen2008().check_search(Search::Full).is_err());
         assert!(Preset::chen2008().check_search(Search::KCoherence { k: 4 }).is_ok());
         assert!(Preset::turk2001().check_search(Search::Full).is_ok());
-        assert!(Preset::chen2008().check_tileable(true).is_err());
-        assert!(Preset::chen2008().check_tileable(false).is_ok());
-        assert!(Preset::appearance().check_tileable(true).is_ok());
     }
 
     #[test]
