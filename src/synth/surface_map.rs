@@ -136,7 +136,12 @@ pub fn build_pyramid(
     if params.preset.rounds() {
         // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
         for (target, m) in targets.iter_mut().zip(&meshes) {
-            target.round = Some(MarchedLevel::new(&m.mesh, &m.frames, m.texel, super::ROUND_STENCIL)?);
+            target.round = Some(MarchedLevel::new(
+                &m.mesh,
+                &m.frames,
+                m.texel,
+                params.preset.round_stencil().expect("rounds() found one"),
+            )?);
         }
     }
     seconds[2] = started.elapsed().as_secs_f64();
