@@ -272,6 +272,17 @@ fn the_round_stencil_is_the_recipes() {
     let params: Value = serde_json::from_str(map2.comment("params").unwrap()).unwrap();
     assert_eq!(params["recipe"], two.to_json());
     assert!(map2.state.uv != map3.state.uv, "2 circles gave 3 circles' surface map");
+
+    // A marching cache filled by 3 circles is not read back for 2: the run gives the
+    // uncached 2-circle map (a 3-circle marching would be refused by the engine).
+    let cache = dir.path().join("cache");
+    let (cached3, cached) = (dir.path().join("cached3.ply"), dir.path().join("cached.ply"));
+    run_ok(
+        &[&mesh[..], &["--preset", "chen2008", "--marching-cache", s(&cache), "-o", s(&cached3)]].concat(),
+    );
+    run_ok(&[&mesh[..], &["--recipe", s(&file), "--marching-cache", s(&cache), "-o", s(&cached)]].concat());
+    let map = btfsynth::synth::surface_map::read_surface_ply(&cached).unwrap();
+    assert!(map.state.uv == map2.state.uv && map.state.labels == map2.state.labels);
 }
 
 /// The colour metric reached through a recipe: every preset's schedule matched on colour

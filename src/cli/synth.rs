@@ -5,8 +5,9 @@ use super::usage;
 use crate::fsutil::{check_target, write_file_atomic};
 use crate::mesh::field::Orientation;
 use crate::synth::plane::{synthesize_plane, write_plane};
+use crate::synth::round::{MarchingCache, MarchingOrigin};
 use crate::synth::surface_map::{
-    build_pyramid, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
+    build_pyramid_cached, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
 };
 use crate::synth::{LevelReport, MetricKind, Preset, Sample, Search, SynthParams};
 use anyhow::{Context, Result};
@@ -103,6 +104,14 @@ pub struct SynthArgs {
     /// Also write timings, candidate-set sizes and mean best distances per level here.
     #[arg(long, value_name = "FILE.json")]
     report: Option<PathBuf>,
+    /// Keep the round-neighbourhood marching of each mesh level in this directory (created
+    /// if missing) and reuse it on later runs with the same mesh, density and levels: a new
+    /// --orient then skips the marching. Files are named by a hash of what the marching
+    /// depends on (about 4.5 KB per vertex of the finest mesh, all levels together); a
+    /// damaged file is recomputed with a warning. Used only in surface mode by presets with
+    /// round neighbourhoods (chen2008); ignored otherwise.
+    #[arg(long, value_name = "DIR")]
+    marching_cache: Option<PathBuf>,
     /// Replace the output if it exists.
     #[arg(long)]
     force: bool,
@@ -163,6 +172,12 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     // Before any remeshing: a refused search is a usage error.
     preset.check_search(search).map_err(usage)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
+    let marching_cache = match &args.marching_cache {
+        Some(dir) if args.mesh.is_some() && params.preset.rounds() => {
+            Some(MarchingCache::open(dir).map_err(|e| usage(format!("--marching-cache: {e}")))?)
+        }
+        _ => None,
+    };
     let mut params_json = serde_json::json!({
         "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
@@ -177,7 +192,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
                 (&analysis, &output),
                 mesh,
                 &sample,
-                &params,
+                (&params, marching_cache.as_ref()),
                 density,
                 levels,
                 &mut params_json,
@@ -235,7 +250,7 @@ fn surface(
     (analysis, output): (&Path, &Path),
     mesh_path: &Path,
     sample: &Sample,
-    params: &SynthParams,
+    (params, marching_cache): (&SynthParams, Option<&MarchingCache>),
     density: Density,
     levels: usize,
     params_json: &mut serde_json::Value,
@@ -251,11 +266,17 @@ fn surface(
             .with_context(|| format!("{} at {density}", mesh_path.display()))?;
     }
     let started = Instant::now();
-    let pyramid = build_pyramid(&mesh, density, levels, &orientation, params, bars)
+    let pyramid = build_pyramid_cached(&mesh, density, levels, &orientation, params, marching_cache, bars)
         .with_context(|| format!("preparing {}", mesh_path.display()))?;
+    let marchings: Vec<Option<MarchingOrigin>> =
+        pyramid.targets.iter().map(|t| t.round.as_ref().map(|r| r.origin)).collect();
     for (l, level) in pyramid.levels.iter().enumerate() {
+        let marching = match marchings[l] {
+            Some(o) => format!(", marching {} in {:.2} s", o.source, o.seconds),
+            None => String::new(),
+        };
         eprintln!(
-            "  mesh level {l}: {} vertices, texel {:.4e}, {}",
+            "  mesh level {l}: {} vertices, texel {:.4e}, {}{marching}",
             level.mesh.vertex_count(),
             level.texel,
             level.edges
@@ -271,6 +292,9 @@ fn surface(
         .iter()
         .map(|l| serde_json::json!({"vertices": l.mesh.vertex_count(), "texel": l.texel, "edge_mean": l.edges.mean, "edge_min": l.edges.min, "edge_max": l.edges.max, "edge_cv": l.edges.coefficient_of_variation}))
         .collect();
+    if marchings.iter().any(Option::is_some) {
+        params_json["marching"] = serde_json::json!(marchings);
+    }
     eprintln!(
         "wrote {} ({} vertices) in {:.1} s",
         output.display(),

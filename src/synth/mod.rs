@@ -2,8 +2,9 @@
 //! a coordinate into the sample, chosen coarse to fine by neighbourhood matching through Γ.
 //!
 //! The engine is a set of parts (see DESIGN.md): the visiting [`VisitOrder`], the
-//! neighbourhood (square templates of surface textons, [`target`]), the candidate
-//! [`Search`], the distance (through Γ, [`engine`]) and the level schedule ([`Preset`]).
+//! neighbourhood (per pass a [`Stencil`]: square templates of surface textons, [`target`],
+//! or Chen–Dong's round ones, [`round`]), the candidate [`Search`], the distance (through Γ,
+//! [`engine`]) and the level schedule ([`Preset`]).
 //! Targets are a level stack of [`target::TargetLevel`]s; plane mode builds them from a
 //! regular grid ([`target::grid_levels`]).
 

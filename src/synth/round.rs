@@ -17,6 +17,10 @@
 //!
 //! The same round resampling of the sample, per texel of a level, is [`RoundSample`].
 
+pub mod cache;
+
+pub use cache::{MarchingCache, MarchingOrigin, MarchingSource};
+
 use super::sample::AppearanceMap;
 use super::surface::{barycentric, flatten, slot, Patch, Topology};
 use super::target::Slot;
@@ -195,6 +199,112 @@ impl SurfaceMarching {
             }
         }
     }
+
+    /// Appends the marching to `out` in a compact little-endian form (read back by
+    /// [`SurfaceMarching::read_from`]): the stencil's circles and the texel, then the
+    /// reference frames, the CSR offsets and the arcs, each array after its length.
+    pub fn write_to(&self, out: &mut Vec<u8>) {
+        let floats =
+            |out: &mut Vec<u8>, values: &[f32]| values.iter().for_each(|x| out.extend(x.to_le_bytes()));
+        out.extend((self.stencil.circles as u64).to_le_bytes());
+        out.extend(self.texel.to_le_bytes());
+        out.extend((self.reference.len() as u64).to_le_bytes());
+        for (s, n) in &self.reference {
+            floats(out, &[s.x, s.y, s.z, n.x, n.y, n.z]);
+        }
+        out.extend((self.arc_start.len() as u64).to_le_bytes());
+        self.arc_start.iter().for_each(|i| out.extend(i.to_le_bytes()));
+        out.extend((self.arcs.len() as u64).to_le_bytes());
+        for arc in &self.arcs {
+            out.extend(arc.from.to_le_bytes());
+            arc.vertices.iter().for_each(|i| out.extend(i.to_le_bytes()));
+            let [a, b, c] = arc.corners;
+            floats(out, &[a.x, a.y, b.x, b.y, c.x, c.y]);
+        }
+    }
+
+    /// Reads a marching written by [`SurfaceMarching::write_to`], all of `bytes` and nothing
+    /// more. Lengths are checked against the bytes present before anything is allocated, and
+    /// the offsets and corner indices against each other, so damaged bytes give an error
+    /// (the message says what is wrong), never a panic or a marching that would index out
+    /// of range.
+    pub fn read_from(bytes: &[u8]) -> std::result::Result<Self, String> {
+        let mut r = LeReader(bytes);
+        let circles = usize::try_from(r.u64()?).map_err(|_| "too many circles")?;
+        if circles == 0 || circles > 64 {
+            return Err(format!("{circles} circles"));
+        }
+        let texel = r.f32()?;
+        if !(texel.is_finite() && texel > 0.0) {
+            return Err(format!("texel {texel}"));
+        }
+        let vertices = r.len(24)?;
+        let reference = (0..vertices)
+            .map(|_| Ok((Vec3::new(r.f32()?, r.f32()?, r.f32()?), Vec3::new(r.f32()?, r.f32()?, r.f32()?))))
+            .collect::<std::result::Result<Vec<_>, String>>()?;
+        let offsets = r.len(4)?;
+        if Some(offsets) != vertices.checked_mul(circles).map(|n| n + 1) {
+            return Err(format!("{offsets} arc offsets for {vertices} vertices of {circles} circles"));
+        }
+        let arc_start = (0..offsets).map(|_| r.u32()).collect::<std::result::Result<Vec<_>, String>>()?;
+        let count = r.len(40)?;
+        let arcs = (0..count)
+            .map(|_| {
+                let from = r.f32()?;
+                let vertices = [r.u32()?, r.u32()?, r.u32()?];
+                let mut corner = || Ok::<_, String>(Vec2::new(r.f32()?, r.f32()?));
+                Ok(Arc { from, vertices, corners: [corner()?, corner()?, corner()?] })
+            })
+            .collect::<std::result::Result<Vec<_>, String>>()?;
+        if !r.0.is_empty() {
+            return Err(format!("{} bytes after the arcs", r.0.len()));
+        }
+        if arc_start[0] != 0
+            || arc_start.windows(2).any(|w| w[0] > w[1])
+            || arc_start[offsets - 1] as usize != count
+        {
+            return Err("the arc offsets do not run from 0 to the arc count".into());
+        }
+        let in_range = |i: u32| i == super::target::OUTSIDE || (i as usize) < vertices;
+        if let Some(arc) =
+            arcs.iter().find(|a| !a.from.is_finite() || !a.vertices.iter().all(|&i| in_range(i)))
+        {
+            return Err(format!("an arc from {} through vertices {:?}", arc.from, arc.vertices));
+        }
+        Ok(SurfaceMarching { stencil: RoundStencil { circles }, texel, reference, arc_start, arcs })
+    }
+}
+
+/// Little-endian values read off the front of a byte slice; running out is an error.
+struct LeReader<'a>(&'a [u8]);
+
+impl LeReader<'_> {
+    fn take<const N: usize>(&mut self) -> std::result::Result<[u8; N], String> {
+        let (head, rest) = self.0.split_first_chunk::<N>().ok_or("the data ends early")?;
+        self.0 = rest;
+        Ok(*head)
+    }
+
+    fn u32(&mut self) -> std::result::Result<u32, String> {
+        self.take().map(u32::from_le_bytes)
+    }
+
+    fn u64(&mut self) -> std::result::Result<u64, String> {
+        self.take().map(u64::from_le_bytes)
+    }
+
+    fn f32(&mut self) -> std::result::Result<f32, String> {
+        self.take().map(f32::from_le_bytes)
+    }
+
+    /// An array length, refused unless that many items of `item_size` bytes could follow.
+    fn len(&mut self, item_size: usize) -> std::result::Result<usize, String> {
+        let n = self.u64()?;
+        usize::try_from(n)
+            .ok()
+            .filter(|&n| n.checked_mul(item_size).is_some_and(|b| b <= self.0.len()))
+            .ok_or_else(|| format!("an array of {n} items in {} bytes", self.0.len()))
+    }
 }
 
 /// A mesh level's round neighbourhoods: its marching (done once) and the start points of
@@ -203,14 +313,33 @@ impl SurfaceMarching {
 pub struct MarchedLevel {
     pub marching: SurfaceMarching,
     pub starts: Vec<StartPoint>,
+    /// Where the marching came from and how long that took (for reports).
+    pub origin: MarchingOrigin,
 }
 
 impl MarchedLevel {
     /// Marches `mesh` with circles `texel` apart and starts them at `frames`' directions.
     pub fn new(mesh: &Mesh, frames: &Frames, texel: f32, stencil: RoundStencil) -> Result<Self> {
-        let marching = SurfaceMarching::new(mesh, &frames.n, texel, stencil)?;
+        Self::with_cache(mesh, frames, texel, stencil, None)
+    }
+
+    /// As [`MarchedLevel::new`], but the marching is read from `cache` where it holds one
+    /// for exactly these inputs, and stored there when it had to be computed.
+    pub fn with_cache(
+        mesh: &Mesh,
+        frames: &Frames,
+        texel: f32,
+        stencil: RoundStencil,
+        cache: Option<&MarchingCache>,
+    ) -> Result<Self> {
+        let started = std::time::Instant::now();
+        let (marching, source) = match cache {
+            Some(cache) => cache.marching(mesh, &frames.n, texel, stencil)?,
+            None => (SurfaceMarching::new(mesh, &frames.n, texel, stencil)?, MarchingSource::Computed),
+        };
+        let seconds = started.elapsed().as_secs_f64();
         let starts = marching.start_points(frames);
-        Ok(MarchedLevel { marching, starts })
+        Ok(MarchedLevel { marching, starts, origin: MarchingOrigin { source, seconds } })
     }
 }
 
@@ -453,6 +582,33 @@ mod tests {
         }
         assert!(differ > marching.vertices() / 2, "only {differ} neighbourhoods turned");
         assert_eq!(marching, kept);
+    }
+
+    /// The written form reads back to an equal marching, and every cut-short prefix of it is
+    /// an error, never a panic or a marching.
+    #[test]
+    fn a_written_marching_reads_back_equal_and_truncation_is_an_error() {
+        let (mesh, frames, texel) = bunny();
+        let marching = SurfaceMarching::new(&mesh, &frames.n, texel, STENCIL).unwrap();
+        let mut bytes = Vec::new();
+        marching.write_to(&mut bytes);
+        assert_eq!(SurfaceMarching::read_from(&bytes).unwrap(), marching);
+        let step = (bytes.len() / 997).max(1);
+        for len in (0..bytes.len()).step_by(step).chain([bytes.len() - 1]) {
+            assert!(
+                SurfaceMarching::read_from(&bytes[..len]).is_err(),
+                "{len} of {} bytes read",
+                bytes.len()
+            );
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert!(SurfaceMarching::read_from(&longer).is_err());
+        // An arc offset past the arcs (the first offset after the reference frames).
+        let offsets_at = 8 + 4 + 8 + 24 * marching.vertices() + 8;
+        let mut damaged = bytes.clone();
+        damaged[offsets_at + 4..offsets_at + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(SurfaceMarching::read_from(&damaged).is_err());
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! and the engine runs coarse to fine. Output: a binary PLY of the finest mesh.
 
 use super::engine::State;
-use super::round::MarchedLevel;
+use super::round::{MarchedLevel, MarchingCache};
 use super::surface::{link_levels, surface_level};
 use super::target::TargetLevel;
 use super::{synthesize, LevelReport, Sample, SynthParams};
@@ -89,6 +89,19 @@ pub fn build_pyramid(
     params: &SynthParams,
     progress: &dyn Progress,
 ) -> Result<SurfacePyramid> {
+    build_pyramid_cached(mesh, density, levels, orientation, params, None, progress)
+}
+
+/// As [`build_pyramid`], reading and storing round-neighbourhood marchings in `marching_cache`.
+pub fn build_pyramid_cached(
+    mesh: &Mesh,
+    density: Density,
+    levels: usize,
+    orientation: &Orientation,
+    params: &SynthParams,
+    marching_cache: Option<&MarchingCache>,
+    progress: &dyn Progress,
+) -> Result<SurfacePyramid> {
     let texel = density.texel(mesh)?;
     let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * (texel as f64).powi(2));
     if estimate > MAX_VERTICES as f64 {
@@ -136,12 +149,9 @@ pub fn build_pyramid(
     if params.preset.rounds() {
         // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
         for (target, m) in targets.iter_mut().zip(&meshes) {
-            target.round = Some(MarchedLevel::new(
-                &m.mesh,
-                &m.frames,
-                m.texel,
-                params.preset.round_stencil().expect("rounds() found one"),
-            )?);
+            let stencil = params.preset.round_stencil().expect("rounds() found one");
+            let marched = MarchedLevel::with_cache(&m.mesh, &m.frames, m.texel, stencil, marching_cache);
+            target.round = Some(marched?);
         }
     }
     seconds[2] = started.elapsed().as_secs_f64();

@@ -1,0 +1,151 @@
+//! `synth --marching-cache DIR`: the round-neighbourhood marching of every mesh level is
+//! computed once, stored, and read back by a run with another texture direction, which
+//! then writes exactly the bytes a run without the cache writes.
+
+mod common;
+
+use common::{analyze_gravel_crop, assert_usage_error, btfsynth, BUNNY};
+use std::path::{Path, PathBuf};
+
+/// Runs chen2008 on the bundled bunny (3,000 vertices, 2 levels) with `orient`, through
+/// `cache` if given; returns the output PLY, the report's `marching` entries' sources and
+/// stderr.
+fn synth(
+    dir: &Path,
+    analysis: &Path,
+    name: &str,
+    orient: &str,
+    cache: Option<&Path>,
+) -> (PathBuf, Vec<String>, String) {
+    let (out, report) = (dir.join(format!("{name}.ply")), dir.join(format!("{name}.json")));
+    let mut args = vec![
+        "synth",
+        analysis.to_str().unwrap(),
+        BUNNY,
+        "--preset",
+        "chen2008",
+        "--vertices",
+        "3000",
+        "--orient",
+        orient,
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    if let Some(cache) = cache {
+        args.extend(["--marching-cache", cache.to_str().unwrap()]);
+    }
+    let r = btfsynth(&args);
+    let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
+    assert!(r.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let marching = report["params"]["marching"].as_array().expect("a marching entry per level");
+    let sources = marching.iter().map(|m| m["source"].as_str().unwrap().to_string()).collect();
+    (out, sources, stderr)
+}
+
+/// The cache's files, sorted, with their bytes.
+fn cached_files(cache: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(cache).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    files.into_iter().map(|p| (p.clone(), std::fs::read(p).unwrap())).collect()
+}
+
+#[test]
+fn a_new_direction_reads_the_cached_marching_and_writes_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let cache = dir.path().join("cache/new");
+    let (_, cold, stderr) = synth(dir.path(), &analysis, "cold", "axis:0,1,0", Some(&cache));
+    assert_eq!(cold, ["computed", "computed"]);
+    assert_eq!(stderr.matches("marching computed in").count(), 2, "{stderr}");
+    let stored = cached_files(&cache);
+    assert_eq!(stored.len(), 2, "one file per mesh level: {stored:?}");
+
+    let (warm, sources, stderr) = synth(dir.path(), &analysis, "warm", "axis:1,0,0", Some(&cache));
+    assert_eq!(sources, ["cached", "cached"]);
+    assert_eq!(stderr.matches("marching read from the cache").count(), 2, "{stderr}");
+    assert!(!stderr.contains("WARN"), "{stderr}");
+    assert_eq!(cached_files(&cache), stored, "reading the cache leaves it as it was");
+
+    let (plain, sources, _) = synth(dir.path(), &analysis, "plain", "axis:1,0,0", None);
+    assert_eq!(sources, ["computed", "computed"]);
+    let (warm, plain) = (std::fs::read(warm).unwrap(), std::fs::read(plain).unwrap());
+    assert!(warm == plain, "the cached marching gave other bytes than a fresh one");
+    let cold = std::fs::read(dir.path().join("cold.ply")).unwrap();
+    assert!(cold != warm, "the two directions should give different maps");
+}
+
+#[test]
+fn a_damaged_cache_file_is_recomputed_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let cache = dir.path().join("cache");
+    synth(dir.path(), &analysis, "first", "axis:0,1,0", Some(&cache));
+    let stored = cached_files(&cache);
+    // One file cut short, the other with one byte flipped in the middle.
+    std::fs::write(&stored[0].0, &stored[0].1[..stored[0].1.len() / 3]).unwrap();
+    let mut flipped = stored[1].1.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x01;
+    std::fs::write(&stored[1].0, flipped).unwrap();
+
+    let (out, sources, stderr) = synth(dir.path(), &analysis, "again", "axis:0,1,0", Some(&cache));
+    assert_eq!(sources, ["recomputed", "recomputed"]);
+    assert_eq!(stderr.matches("WARN").count(), 2, "one warning per damaged file: {stderr}");
+    assert!(!stderr.contains("error"), "{stderr}");
+    assert_eq!(cached_files(&cache), stored, "the damaged files are overwritten with good ones");
+    let first = std::fs::read(dir.path().join("first.ply")).unwrap();
+    assert!(std::fs::read(out).unwrap() == first);
+}
+
+#[test]
+fn an_unwritable_cache_directory_is_a_usage_error_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, b"not a directory").unwrap();
+    let out = dir.path().join("out.ply");
+    let cache = file.join("cache");
+    let args = ["synth", analysis.to_str().unwrap(), BUNNY, "--preset", "chen2008", "--vertices", "3000"];
+    let r = btfsynth(
+        &[&args[..], &["--marching-cache", cache.to_str().unwrap(), "-o", out.to_str().unwrap()]].concat(),
+    );
+    assert_usage_error(&r, "--marching-cache");
+    assert!(!out.exists());
+}
+
+/// Presets without round neighbourhoods have no marching: the flag leaves no directory.
+#[test]
+fn the_cache_is_ignored_without_round_neighbourhoods() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let (out, cache) = (dir.path().join("plane"), dir.path().join("cache"));
+    let r = btfsynth(&[
+        "synth",
+        analysis.to_str().unwrap(),
+        "--plane",
+        "32x32",
+        "--preset",
+        "chen2008",
+        "--marching-cache",
+        cache.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r = btfsynth(&[
+        "synth",
+        analysis.to_str().unwrap(),
+        BUNNY,
+        "--vertices",
+        "3000",
+        "--marching-cache",
+        cache.to_str().unwrap(),
+        "-o",
+        dir.path().join("appearance.ply").to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(!cache.exists());
+}
