@@ -4,9 +4,9 @@
 
 mod common;
 
-use btfsynth::synth::{Mask, ParentNeighbourhood, Preset};
+use btfsynth::synth::{Mask, ParentNeighbourhood, Preset, Stencil};
 use common::{assert_usage_error, btfsynth, entries};
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
 fn s(p: &Path) -> &str {
@@ -150,6 +150,29 @@ fn bad_recipes_are_refused_with_one_line() {
     assert_usage_error(&synth(&blind), "finer pass 0: mask Off compares nothing");
     let orphan = edited("orphan.json", &|r| r["coarsest"]["passes"][0]["parent"] = "Narrow".into());
     assert_usage_error(&synth(&orphan), "the coarsest level has no parent neighbourhood");
+    let round =
+        edited("round.json", &|r| r["finer"]["passes"][1]["stencil"] = json!({"Round": {"circles": 3}}));
+    assert_usage_error(&synth(&round), "finer pass 1: the Appearance metric matches square templates");
+    let unshaped = edited("unshaped.json", &|r| {
+        r["finer"]["passes"][0].as_object_mut().unwrap().remove("stencil");
+    });
+    assert_usage_error(&synth(&unshaped), "missing field `stencil`");
+    let chen = |name: &str, edit: &dyn Fn(&mut Value)| {
+        let mut recipe = Preset::chen2008().to_json();
+        edit(&mut recipe);
+        write_json(&dir.path().join(name), &recipe)
+    };
+    let square = chen("square.json", &|r| r["finer"]["passes"][0]["stencil"] = "Square".into());
+    assert_usage_error(&synth(&square), "the Adaptive metric matches round neighbourhoods");
+    for (circles, needle) in [(0, "not 0"), (9, "1 to 7 circles")] {
+        let wide = chen("circles.json", &|r| {
+            r["finer"]["passes"][0]["stencil"]["Round"]["circles"] = circles.into()
+        });
+        assert_usage_error(&synth(&wide), needle);
+    }
+    let disagree =
+        chen("disagree.json", &|r| r["finer"]["passes"][0]["stencil"]["Round"]["circles"] = 2.into());
+    assert_usage_error(&synth(&disagree), "not 3 and 2");
     let both = btfsynth(&[
         "synth",
         s(&analysis),
@@ -180,9 +203,86 @@ fn bad_recipes_are_refused_with_one_line() {
     let fine = write_json(&dir.path().join("fine.json"), &Preset::appearance().to_json());
     let r = btfsynth(&["synth", s(&old), "--plane", "16x16", "--recipe", s(&fine), "-o", s(&out)]);
     assert_usage_error(&r, "appearance vectors, which this analysis lacks");
+
+    // Three levels of the 48² crop leave a 12² coarsest level, which holds no candidate's
+    // whole round neighbourhood of 6 circles (15² texels): refused before any work.
+    let small = dir.path().join("small");
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    run_ok(&[
+        "-q",
+        "analyze",
+        texture,
+        "--crop",
+        "0,0,48,48",
+        "--textons",
+        "32",
+        "--levels",
+        "3",
+        "-o",
+        s(&small),
+    ]);
+    let six = chen("six.json", &|r| {
+        for level in ["coarsest", "finer"] {
+            for pass in r[level]["passes"].as_array_mut().unwrap() {
+                pass["stencil"]["Round"]["circles"] = 6.into();
+            }
+        }
+    });
+    let r = btfsynth(&["synth", s(&small), "--plane", "16x16", "--recipe", s(&six), "-o", s(&out)]);
+    assert_usage_error(&r, "the coarsest sample level in use is 12x12: use at most 4 circles");
     let mut names = entries(dir.path());
     names.retain(|n| !n.ends_with(".json"));
-    assert_eq!(names, ["analysis", "old"], "nothing written");
+    assert_eq!(names, ["analysis", "old", "small"], "nothing written");
+}
+
+/// chen2008's recipe with round neighbourhoods of 2 circles instead of 3 runs on a plane
+/// and a mesh (marched for 2 circles), is recorded as given, and gives another result.
+#[test]
+fn the_round_stencil_is_the_recipes() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let mut two = Preset::chen2008();
+    two.name = "chen2008-two-circles".into();
+    two.all_passes_mut().for_each(|p| p.stencil = Stencil::Round { circles: 2 });
+    let file = common::write_recipe(&dir.path().join("two.json"), &two);
+    let plane = ["-q", "synth", s(&analysis), "--plane", "40x32", "--seed", "5"];
+    let (by_two, by_three) = (dir.path().join("two"), dir.path().join("three"));
+    run_ok(&[&plane[..], &["--recipe", s(&file), "-o", s(&by_two)]].concat());
+    run_ok(&[&plane[..], &["--preset", "chen2008", "-o", s(&by_three)]].concat());
+    let (labels, uv, manifest) = plane_bytes(&by_two);
+    let (labels3, uv3, manifest3) = plane_bytes(&by_three);
+    assert_eq!(
+        manifest["params"]["recipe"]["finer"]["passes"][0]["stencil"],
+        json!({"Round": {"circles": 2}})
+    );
+    assert_eq!(
+        manifest3["params"]["recipe"]["finer"]["passes"][0]["stencil"],
+        json!({"Round": {"circles": 3}})
+    );
+    assert!(labels != labels3 || uv != uv3, "2 circles gave 3 circles' plane");
+
+    let mesh = ["-q", "synth", s(&analysis), common::BUNNY, "--vertices", "3000", "--seed", "5"];
+    let (ply2, ply3) = (dir.path().join("two.ply"), dir.path().join("three.ply"));
+    run_ok(&[&mesh[..], &["--recipe", s(&file), "-o", s(&ply2)]].concat());
+    run_ok(&[&mesh[..], &["--preset", "chen2008", "-o", s(&ply3)]].concat());
+    let (map2, map3) = (
+        btfsynth::synth::surface_map::read_surface_ply(&ply2).unwrap(),
+        btfsynth::synth::surface_map::read_surface_ply(&ply3).unwrap(),
+    );
+    let params: Value = serde_json::from_str(map2.comment("params").unwrap()).unwrap();
+    assert_eq!(params["recipe"], two.to_json());
+    assert!(map2.state.uv != map3.state.uv, "2 circles gave 3 circles' surface map");
+
+    // A marching cache filled by 3 circles is not read back for 2: the run gives the
+    // uncached 2-circle map (a 3-circle marching would be refused by the engine).
+    let cache = dir.path().join("cache");
+    let (cached3, cached) = (dir.path().join("cached3.ply"), dir.path().join("cached.ply"));
+    run_ok(
+        &[&mesh[..], &["--preset", "chen2008", "--marching-cache", s(&cache), "-o", s(&cached3)]].concat(),
+    );
+    run_ok(&[&mesh[..], &["--recipe", s(&file), "--marching-cache", s(&cache), "-o", s(&cached)]].concat());
+    let map = btfsynth::synth::surface_map::read_surface_ply(&cached).unwrap();
+    assert!(map.state.uv == map2.state.uv && map.state.labels == map2.state.labels);
 }
 
 /// The colour metric reached through a recipe: every preset's schedule matched on colour

@@ -2,8 +2,9 @@
 //! a coordinate into the sample, chosen coarse to fine by neighbourhood matching through Γ.
 //!
 //! The engine is a set of parts (see DESIGN.md): the visiting [`VisitOrder`], the
-//! neighbourhood (square templates of surface textons, [`target`]), the candidate
-//! [`Search`], the distance (through Γ, [`engine`]) and the level schedule ([`Preset`]).
+//! neighbourhood (per pass a [`Stencil`]: square templates of surface textons, [`target`],
+//! or Chen–Dong's round ones, [`round`]), the candidate [`Search`], the distance (through Γ,
+//! [`engine`]) and the level schedule ([`Preset`]).
 //! Targets are a level stack of [`target::TargetLevel`]s; plane mode builds them from a
 //! regular grid ([`target::grid_levels`]).
 
@@ -25,7 +26,9 @@ pub mod target;
 
 pub use candidates::Search;
 pub use engine::{Select, State, VisitOrder};
-pub use recipe::{Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start};
+pub use recipe::{
+    Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start, Stencil,
+};
 pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
@@ -39,10 +42,6 @@ use round::{RoundSample, RoundStencil};
 use round_pass::RoundTarget;
 use std::time::{Duration, Instant};
 use target::TargetLevel;
-
-/// The round neighbourhoods of [`MetricKind::Adaptive`]: three circles, as Chen and Dong's
-/// (the 7×7 square's reach).
-pub const ROUND_STENCIL: RoundStencil = RoundStencil { circles: 3 };
 
 /// Parameters of one synthesis.
 #[derive(Clone, Debug)]
@@ -126,7 +125,7 @@ pub fn synthesize(
             (Start::Inherit, None) => unreachable!("checked above: the coarsest level does not inherit"),
         };
         let mut stats = PassStats::default();
-        let rounds = round_inputs(recipe, target, level_sample)?;
+        let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
         for p in &recipe.passes {
             let order = visit_order(target, p.order, sweep.as_ref().map(|s| s[l].as_slice()), &mut rng);
             let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref(), rounds: rounds.as_ref() };
@@ -152,26 +151,35 @@ struct LevelInputs<'a> {
     rounds: Option<&'a (RoundTarget<'a>, RoundSample)>,
 }
 
-/// The round neighbourhoods a level's adaptive passes compare (none if it has no such
-/// pass): the grid's own or the mesh level's marching, and the sample level's, resampled
-/// once here.
+/// The round neighbourhoods of `stencil` (the recipe's, [`Preset::round_stencil`]) a
+/// level's round passes compare (none if it has no such pass): the grid's own or the mesh
+/// level's marching, and the sample level's, resampled once here.
 fn round_inputs<'a>(
     recipe: &LevelRecipe,
+    stencil: Option<RoundStencil>,
     target: &'a TargetLevel,
     sample: &SampleLevel,
 ) -> Result<Option<(RoundTarget<'a>, RoundSample)>> {
-    if !recipe.passes.iter().any(|p| p.metric == MetricKind::Adaptive) {
+    let Some(stencil) = stencil.filter(|_| recipe.passes.iter().any(|p| p.stencil.round().is_some())) else {
         return Ok(None);
-    }
+    };
     let round = match (&target.neighbourhoods, &target.round) {
         (&target::Neighbourhoods::Grid { width, height, wraps, .. }, _) => {
             RoundTarget::Grid { width, height, wraps }
         }
-        (_, Some(m)) => RoundTarget::Mesh { marching: &m.marching, starts: &m.starts },
+        (_, Some(m)) if m.marching.stencil == stencil => {
+            RoundTarget::Mesh { marching: &m.marching, starts: &m.starts }
+        }
+        (_, Some(m)) => {
+            return Err(Error::invalid(format!(
+                "the mesh level was marched for {} circles, but the recipe's round neighbourhoods have {}",
+                m.marching.stencil.circles, stencil.circles
+            )))
+        }
         (_, None) => return Err(Error::invalid("round neighbourhoods on a mesh need its marching")),
     };
     let map = sample.appearance.as_ref().expect("checked in synthesize");
-    Ok(Some((round, RoundSample::new(map, sample.width, sample.height, ROUND_STENCIL)?)))
+    Ok(Some((round, RoundSample::new(map, sample.width, sample.height, stencil)?)))
 }
 
 /// Runs one pass, dispatching once on its metric so the candidate loop is monomorphised.

@@ -1,11 +1,13 @@
 //! Presets as data: a [`Preset`] is a recipe naming, per level, how the level starts and
 //! which passes run over it, and per pass every part the engine is built from (visiting
-//! order, neighbourhood mask, parent neighbourhood, candidate source, metric, selection).
+//! order, neighbourhood stencil and mask, parent neighbourhood, candidate source, metric,
+//! selection).
 //! `synth` records the whole recipe in its outputs, so a result says how it was made.
 
 use super::candidates::Search;
 use super::engine::{Select, VisitOrder};
-use super::sample::SampleLevel;
+use super::round::RoundStencil;
+use super::sample::{AppearanceMap, SampleLevel};
 use crate::{Error, Result};
 
 /// The neighbourhood distance a pass matches with.
@@ -42,6 +44,28 @@ pub enum Start {
     /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
     /// only below the coarsest level.
     Inherit,
+}
+
+/// The most circles a round neighbourhood may have: the sample's appearance maps keep a
+/// border of [`AppearanceMap::PAD`] texels, and the round resampling reads one texel beyond
+/// the outer circle (bilinear), so `circles + 1` must fit in it.
+pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
+
+/// The shape of a pass's own-level neighbourhood: which offsets around a vertex it reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Stencil {
+    /// The square template of Tong, Turk and Wei–Levoy: `--neighborhood` texels a side
+    /// (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
+    /// whole square, `Visited` the causal part, `Half` Turk's half square, `Off` none of it.
+    /// Matched by the `Gamma`, `Appearance` and `Colour` metrics.
+    Square,
+    /// Chen and Dong's round neighbourhood (2008 §4): the centre and `circles` concentric
+    /// circles one texel apart (circle c holds 8c points), grown circle by circle by the
+    /// `Adaptive` metric, which alone matches it. Chen and Dong use 3 (the 7×7 square's
+    /// reach); 1 to [`MAX_CIRCLES`], and each candidate keeps a border of `circles + 1`
+    /// texels, which the coarsest sample level in use must hold unless it tiles.
+    Round { circles: usize },
 }
 
 /// Which of the level's own template pixels a pass compares.
@@ -88,6 +112,8 @@ pub enum Candidates {
 pub struct Pass {
     /// Visiting order.
     pub order: VisitOrder,
+    /// The own-level neighbourhood's shape: square or round.
+    pub stencil: Stencil,
     /// Which own-level template pixels are compared.
     pub mask: Mask,
     /// Whether and how the coarser level's neighbourhood joins the distance.
@@ -157,6 +183,7 @@ impl Preset {
     fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
         let pass = |parent| Pass {
             order: VisitOrder::Random,
+            stencil: Stencil::Square,
             mask: Mask::Full,
             parent,
             candidates: Candidates::Search,
@@ -183,6 +210,7 @@ impl Preset {
     pub fn turk2001() -> Self {
         let pass = |mask, parent| Pass {
             order: VisitOrder::Sweep,
+            stencil: Stencil::Square,
             mask,
             parent,
             candidates: Candidates::Search,
@@ -215,6 +243,7 @@ impl Preset {
     pub fn chen2008() -> Self {
         let pass = |mask| Pass {
             order: VisitOrder::MostConstrained,
+            stencil: Stencil::Round { circles: 3 },
             mask,
             parent: ParentNeighbourhood::None,
             candidates: Candidates::Search,
@@ -232,7 +261,24 @@ impl Preset {
 
     /// Whether any pass matches round neighbourhoods (which need a marching on meshes).
     pub fn rounds(&self) -> bool {
-        self.uses(MetricKind::Adaptive)
+        self.round_stencil().is_some()
+    }
+
+    /// The round neighbourhood the recipe's round passes share (a mesh level is marched for
+    /// it once, and each sample level resampled on it once), or none without such passes.
+    /// [`Self::validate`] refuses passes that disagree; here the first one's is taken.
+    pub fn round_stencil(&self) -> Option<RoundStencil> {
+        self.all_passes().find_map(|p| p.stencil.round())
+    }
+
+    /// Every pass of the recipe, the coarsest level's first.
+    pub fn all_passes(&self) -> impl Iterator<Item = &Pass> {
+        self.coarsest.passes.iter().chain(&self.finer.passes)
+    }
+
+    /// Every pass of the recipe, for editing.
+    pub fn all_passes_mut(&mut self) -> impl Iterator<Item = &mut Pass> {
+        self.coarsest.passes.iter_mut().chain(&mut self.finer.passes)
     }
 
     /// Refuses a search the recipe cannot run well: adaptive passes take their candidates
@@ -240,10 +286,7 @@ impl Preset {
     /// smears (1.2% of stone33's adjacent pairs on one texel, README) at 60× the time.
     pub fn check_search(&self, search: Search) -> Result<()> {
         let adaptive_full = self
-            .coarsest
-            .passes
-            .iter()
-            .chain(&self.finer.passes)
+            .all_passes()
             .any(|p| p.metric == MetricKind::Adaptive && pass_search(p, search) == Search::Full);
         if adaptive_full {
             return Err(Error::invalid(format!(
@@ -274,12 +317,12 @@ impl Preset {
 
     /// Whether any pass visits in sweep order (which needs sweep distances).
     pub fn sweeps(&self) -> bool {
-        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.order == VisitOrder::Sweep)
+        self.all_passes().any(|p| p.order == VisitOrder::Sweep)
     }
 
     /// Whether any pass matches with `metric`.
     pub fn uses(&self, metric: MetricKind) -> bool {
-        self.coarsest.passes.iter().chain(&self.finer.passes).any(|p| p.metric == metric)
+        self.all_passes().any(|p| p.metric == metric)
     }
 
     /// A recipe from JSON in the form [`Self::to_json`] writes (the `recipe` object `synth`
@@ -292,7 +335,8 @@ impl Preset {
 
     /// Refuses a recipe the engine cannot run as written: a coarsest level that inherits
     /// (it has no parent), a level without passes, a parent neighbourhood on the coarsest
-    /// level, a pass that compares nothing (mask off without a parent neighbourhood), and
+    /// level, a pass that compares nothing (mask off without a parent neighbourhood), a
+    /// stencil its metric does not match, round passes that disagree on their circles, and
     /// numbers out of range.
     pub fn validate(&self) -> Result<()> {
         let refuse = |what: String| Err(Error::invalid(format!("recipe '{}': {what}", self.name)));
@@ -322,12 +366,22 @@ impl Preset {
                     .map_or(Ok(()), |why| refuse(format!("{level} pass {i}: {why}")))?;
             }
         }
+        let mut rounds = self.all_passes().filter_map(|p| p.stencil.round());
+        if let Some(first) = rounds.next() {
+            if let Some(other) = rounds.find(|&r| r != first) {
+                return refuse(format!(
+                    "every Round pass must have the same circles (a level's round neighbourhoods are built once for all its passes), not {} and {}",
+                    first.circles, other.circles
+                ));
+            }
+        }
         Ok(())
     }
 
-    /// Refuses a recipe whose metrics need what `levels` lack: appearance vectors (analyses
-    /// written before they existed) or colours (not loaded with
-    /// [`super::Sample::load_colours`]).
+    /// Refuses a recipe whose metrics need what `levels` (finest first) lack: appearance
+    /// vectors (analyses written before they existed), colours (not loaded with
+    /// [`super::Sample::load_colours`]), or a coarsest level that holds no whole round
+    /// neighbourhood.
     pub fn check_sample(&self, levels: &[SampleLevel]) -> Result<()> {
         let needs_appearance = self.uses(MetricKind::Appearance) || self.uses(MetricKind::Adaptive);
         if needs_appearance && levels.iter().any(|l| l.appearance.is_none()) {
@@ -335,6 +389,10 @@ impl Preset {
                 "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
                 self.name
             )));
+        }
+        if let (Some(round), Some(coarsest)) = (self.round_stencil(), levels.last()) {
+            round_fits(round, coarsest)
+                .map_or(Ok(()), |why| Err(Error::invalid(format!("recipe '{}': {why}", self.name))))?;
         }
         if self.uses(MetricKind::Colour) && levels.iter().any(|l| l.colour.is_none()) {
             return Err(Error::invalid(format!(
@@ -355,6 +413,38 @@ impl Preset {
     }
 }
 
+impl Stencil {
+    /// The round neighbourhood, for a round stencil.
+    pub fn round(&self) -> Option<RoundStencil> {
+        match *self {
+            Stencil::Round { circles } => Some(RoundStencil { circles }),
+            Stencil::Square => None,
+        }
+    }
+}
+
+/// Why `sample` (the coarsest level in use) cannot serve round neighbourhoods of `round`, if
+/// it cannot: a candidate texel keeps `circles + 1` texels of border on every side (the
+/// resampling reads one beyond the outer circle), so a level that does not tile needs
+/// `2 (circles + 1) + 1` texels on its smaller side, or no texel is a whole candidate.
+fn round_fits(round: RoundStencil, sample: &SampleLevel) -> Option<String> {
+    let side = sample.width.min(sample.height);
+    let need = 2 * (round.circles + 1) + 1;
+    if sample.tileable || side >= need {
+        return None;
+    }
+    let fit = (side.saturating_sub(1) / 2).saturating_sub(1);
+    let advice = if fit == 0 {
+        "use fewer levels".to_string()
+    } else {
+        format!("use at most {fit} circles or fewer levels")
+    };
+    Some(format!(
+        "round neighbourhoods of {} circles need {need}x{need} texels around each candidate, but the coarsest sample level in use is {}x{}: {advice}",
+        round.circles, sample.width, sample.height
+    ))
+}
+
 /// Why the engine cannot run `pass` as written, if it cannot.
 fn pass_problem(pass: &Pass, coarsest: bool) -> Option<String> {
     if coarsest && pass.parent != ParentNeighbourhood::None {
@@ -362,6 +452,22 @@ fn pass_problem(pass: &Pass, coarsest: bool) -> Option<String> {
     }
     if pass.mask == Mask::Off && pass.parent == ParentNeighbourhood::None {
         return Some("mask Off compares nothing without a parent neighbourhood".into());
+    }
+    match (pass.metric, pass.stencil) {
+        (MetricKind::Adaptive, Stencil::Square) => {
+            return Some("the Adaptive metric matches round neighbourhoods (stencil {\"Round\": {\"circles\": 3}}), not Square".into())
+        }
+        (MetricKind::Adaptive, Stencil::Round { circles }) if !(1..=MAX_CIRCLES).contains(&circles) => {
+            return Some(format!(
+                "a Round stencil has 1 to {MAX_CIRCLES} circles (the sample's border holds circles + 1 texels), not {circles}"
+            ))
+        }
+        (metric, Stencil::Round { .. }) if metric != MetricKind::Adaptive => {
+            return Some(format!(
+                "the {metric:?} metric matches square templates (stencil Square); round neighbourhoods need the Adaptive metric"
+            ))
+        }
+        _ => {}
     }
     if pass.metric == MetricKind::Adaptive && !matches!(pass.mask, Mask::Visited | Mask::Full) {
         return Some(
@@ -406,6 +512,81 @@ mod tests {
         assert_eq!(chen["coarsest"]["passes"][0]["mask"], "Visited");
         assert_eq!(chen["finer"]["passes"][0]["order"], "MostConstrained");
         assert!(Preset::chen2008().rounds() && !Preset::turk2001().rounds());
+        assert_eq!(chen["finer"]["passes"][0]["stencil"]["Round"]["circles"], 3);
+        assert_eq!(json["finer"]["passes"][1]["stencil"], "Square");
+    }
+
+    /// Every preset names its stencil: round for Chen and Dong's adaptive metric, square for
+    /// the others; the recipe's round stencil is the one its round passes share.
+    #[test]
+    fn every_preset_matches_its_metric_on_its_stencil() {
+        for p in Preset::all() {
+            for pass in p.all_passes() {
+                let round = pass.stencil.round().is_some();
+                assert_eq!(round, pass.metric == MetricKind::Adaptive, "{}: {pass:?}", p.name);
+            }
+        }
+        assert_eq!(Preset::chen2008().round_stencil(), Some(RoundStencil { circles: 3 }));
+        assert_eq!(Preset::appearance().round_stencil(), None);
+        let mut two = Preset::chen2008();
+        two.all_passes_mut().for_each(|pass| pass.stencil = Stencil::Round { circles: 2 });
+        assert_eq!(
+            Preset::from_json(&two.to_json().to_string()).unwrap().round_stencil().unwrap().circles,
+            2
+        );
+    }
+
+    /// A stencil its metric does not match, circles out of range and round passes that
+    /// disagree are refused, each with a message that says which.
+    #[test]
+    fn stencils_the_engine_cannot_run_are_refused() {
+        let edited = |edit: &dyn Fn(&mut Preset)| {
+            let mut p = Preset::chen2008();
+            edit(&mut p);
+            Preset::from_json(&p.to_json().to_string())
+        };
+        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
+            let e = edited(edit).expect_err(needle).to_string();
+            assert!(e.contains(needle), "{e}");
+        };
+        refused(
+            &|p| p.finer.passes[0].stencil = Stencil::Square,
+            "finer pass 0: the Adaptive metric matches round",
+        );
+        refused(
+            &|p| p.finer.passes[0].metric = MetricKind::Appearance,
+            "the Appearance metric matches square templates",
+        );
+        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: 0 }, "not 0");
+        let past = MAX_CIRCLES + 1;
+        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: past }, &format!("not {past}"));
+        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: 4 }, "not 3 and 4");
+        let all = |circles| {
+            move |p: &mut Preset| p.all_passes_mut().for_each(|q| q.stencil = Stencil::Round { circles })
+        };
+        assert!(edited(&all(1)).is_ok() && edited(&all(MAX_CIRCLES)).is_ok());
+        let mut square = Preset::turk2001();
+        square.finer.passes[1].stencil = Stencil::Round { circles: 3 };
+        let e = Preset::from_json(&square.to_json().to_string()).unwrap_err().to_string();
+        assert!(e.contains("finer pass 1: the Appearance metric matches square templates"), "{e}");
+        // Serde names a misspelt field inside the stencil.
+        let mut json = Preset::chen2008().to_json();
+        json["finer"]["passes"][0]["stencil"] = serde_json::json!({"Round": {"circle": 3}});
+        let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
+        assert!(e.contains("circle"), "{e}");
+    }
+
+    /// A candidate keeps circles + 1 texels of border: a 16² level that does not tile holds
+    /// round neighbourhoods of up to 6 circles (15² texels), a tiling one any.
+    #[test]
+    fn round_neighbourhoods_must_fit_the_coarsest_level() {
+        let mut sample = crate::synth::engine::tests::periodic_sample(4);
+        sample.tileable = false;
+        assert_eq!(round_fits(RoundStencil { circles: 6 }, &sample), None);
+        let e = round_fits(RoundStencil { circles: 7 }, &sample).unwrap();
+        assert!(e.contains("17x17") && e.contains("16x16") && e.contains("at most 6 circles"), "{e}");
+        sample.tileable = true;
+        assert_eq!(round_fits(RoundStencil { circles: 7 }, &sample), None);
     }
 
     #[test]

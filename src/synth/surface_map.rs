@@ -149,8 +149,8 @@ pub fn build_pyramid_cached(
     if params.preset.rounds() {
         // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
         for (target, m) in targets.iter_mut().zip(&meshes) {
-            let marched =
-                MarchedLevel::with_cache(&m.mesh, &m.frames, m.texel, super::ROUND_STENCIL, marching_cache);
+            let stencil = params.preset.round_stencil().expect("rounds() found one");
+            let marched = MarchedLevel::with_cache(&m.mesh, &m.frames, m.texel, stencil, marching_cache);
             target.round = Some(marched?);
         }
     }
