@@ -82,8 +82,10 @@ fn snap(p: f32) -> f32 {
 }
 
 /// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`)
-/// or, with [`Search::Full`], every candidate texel, picked as `select` says. With [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far
-/// in the pass are compared; with [`Mask::Full`] (refining a level) every vertex is.
+/// or, with [`Search::Full`], every candidate texel, picked as `select` says with `bias`
+/// on candidates that start a new copy (as the square passes weigh them). With
+/// [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far in the
+/// pass are compared; with [`Mask::Full`] (refining a level) every vertex is.
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
     level: &TargetLevel,
