@@ -129,12 +129,16 @@ pub fn write_with_temp(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> 
 pub fn remove_staged() {
     let register = lock_register();
     for path in register.iter() {
-        // A worker may still be creating files inside a staging directory while it is
-        // removed; a few attempts win that race.
-        for _ in 0..20 {
+        // Workers may still be creating files inside a staging directory. Renamed away
+        // first, the directory takes no new files (their paths no longer resolve), so its
+        // removal cannot lose a race with them however loaded the machine is; the
+        // attempts cover files opened before the rename.
+        let doomed = temp_sibling(path, REMOVED).ok().filter(|d| std::fs::rename(path, d).is_ok());
+        let doomed = doomed.as_deref().unwrap_or(path);
+        for _ in 0..200 {
             let removed =
-                if path.is_dir() { std::fs::remove_dir_all(path) } else { std::fs::remove_file(path) };
-            if removed.is_ok() || !path.exists() {
+                if doomed.is_dir() { std::fs::remove_dir_all(doomed) } else { std::fs::remove_file(doomed) };
+            if removed.is_ok() || !doomed.exists() {
                 break;
             }
             std::thread::sleep(std::time::Duration::from_millis(5));
@@ -183,6 +187,7 @@ pub fn relative_path(target: &Path, base: &Path) -> PathBuf {
 /// The tags of temporary names: being written, replaced by a commit, probing writability.
 const TEMPORARY: &str = "tmp";
 const REPLACED: &str = "old";
+const REMOVED: &str = "removed";
 const PROBE: &str = "probe";
 
 /// `dir/.name.TAG-PID` (the extension is kept last so format detection still works).
