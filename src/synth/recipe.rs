@@ -283,7 +283,8 @@ impl Preset {
 
     /// Refuses a search the recipe cannot run well: adaptive passes take their candidates
     /// around the linked texels (k-coherence), as Chen and Dong do; a full search there
-    /// smears (1.2% of stone33's adjacent pairs on one texel, README) at 60× the time.
+    /// smeared 1.2% of stone33's adjacent pairs onto one texel at 60× the time (README;
+    /// measured before the adaptive passes had the coherence bias).
     pub fn check_search(&self, search: Search) -> Result<()> {
         let adaptive_full = self
             .all_passes()
