@@ -71,7 +71,50 @@ fn every_recorded_recipe_gives_back_its_presets_output() {
         assert!(labels == labels2 && uv == uv2, "{name}: the recipe's output differs from the preset's");
         assert_eq!(manifest2["params"]["recipe"], manifest["params"]["recipe"], "{name}");
         assert_eq!(manifest2["params"]["preset"], name);
+        if !preset.rounds() {
+            older_recipe_gives_the_same_output(
+                &analysis,
+                &manifest["params"]["recipe"],
+                (&labels, &uv),
+                name,
+            );
+        }
     }
+}
+
+/// A square-template recipe recorded before passes named their stencil still runs, as the
+/// same preset.
+fn older_recipe_gives_the_same_output(
+    analysis: &Path,
+    recipe: &Value,
+    (labels, uv): (&[u8], &[u8]),
+    name: &str,
+) {
+    let mut older = recipe.clone();
+    for level in ["coarsest", "finer"] {
+        for pass in older[level]["passes"].as_array_mut().unwrap() {
+            pass.as_object_mut().unwrap().remove("stencil");
+        }
+    }
+    let dir = analysis.parent().unwrap();
+    let file = write_json(&dir.join(format!("{name}-older.json")), &older);
+    let out = dir.join(format!("{name}-older"));
+    run_ok(&[
+        "-q",
+        "synth",
+        s(analysis),
+        "--plane",
+        "40x32",
+        "--recipe",
+        s(&file),
+        "--seed",
+        "5",
+        "-o",
+        s(&out),
+    ]);
+    let (labels2, uv2, manifest) = plane_bytes(&out);
+    assert!(labels == labels2 && uv == uv2, "{name}: a recipe without stencils differs");
+    assert_eq!(manifest["params"]["recipe"], *recipe, "{name}: recorded with its stencils");
 }
 
 /// The default with one coarsest pass less, renamed: it runs, differs from the default, and
@@ -153,15 +196,17 @@ fn bad_recipes_are_refused_with_one_line() {
     let round =
         edited("round.json", &|r| r["finer"]["passes"][1]["stencil"] = json!({"Round": {"circles": 3}}));
     assert_usage_error(&synth(&round), "finer pass 1: the Appearance metric matches square templates");
-    let unshaped = edited("unshaped.json", &|r| {
-        r["finer"]["passes"][0].as_object_mut().unwrap().remove("stencil");
-    });
-    assert_usage_error(&synth(&unshaped), "missing field `stencil`");
     let chen = |name: &str, edit: &dyn Fn(&mut Value)| {
         let mut recipe = Preset::chen2008().to_json();
         edit(&mut recipe);
         write_json(&dir.path().join(name), &recipe)
     };
+    // A recipe recorded before passes named their stencil means square templates, which a
+    // round-neighbourhood pass refuses.
+    let unshaped = chen("unshaped.json", &|r| {
+        r["finer"]["passes"][0].as_object_mut().unwrap().remove("stencil");
+    });
+    assert_usage_error(&synth(&unshaped), "the Adaptive metric matches round neighbourhoods");
     let square = chen("square.json", &|r| r["finer"]["passes"][0]["stencil"] = "Square".into());
     assert_usage_error(&synth(&square), "the Adaptive metric matches round neighbourhoods");
     for (circles, needle) in [(0, "not 0"), (9, "1 to 7 circles")] {

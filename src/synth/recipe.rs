@@ -52,13 +52,15 @@ pub enum Start {
 pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
 
 /// The shape of a pass's own-level neighbourhood: which offsets around a vertex it reads.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum Stencil {
     /// The square template of Tong, Turk and Wei–Levoy: `--neighborhood` texels a side
     /// (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
     /// whole square, `Visited` the causal part, `Half` Turk's half square, `Off` none of it.
-    /// Matched by the `Gamma`, `Appearance` and `Colour` metrics.
+    /// Matched by the `Gamma`, `Appearance` and `Colour` metrics. A recipe that names no
+    /// stencil (one recorded before the field existed) means this one.
+    #[default]
     Square,
     /// Chen and Dong's round neighbourhood (2008 §4): the centre and `circles` concentric
     /// circles one texel apart (circle c holds 8c points), grown circle by circle by the
@@ -113,6 +115,7 @@ pub struct Pass {
     /// Visiting order.
     pub order: VisitOrder,
     /// The own-level neighbourhood's shape: square or round.
+    #[serde(default)]
     pub stencil: Stencil,
     /// Which own-level template pixels are compared.
     pub mask: Mask,
