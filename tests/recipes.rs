@@ -29,6 +29,15 @@ fn plane_bytes(out: &Path) -> (Vec<u8>, Vec<u8>, Value) {
     (std::fs::read(out.join("labels.npy")).unwrap(), std::fs::read(out.join("uv.npy")).unwrap(), manifest)
 }
 
+/// A 40×32 plane of `analysis` at seed 5, made as `how` says (`--preset NAME` or `--recipe
+/// FILE`), into `out`: its labels and coordinates bytes and its plane.json.
+fn seeded_plane(analysis: &Path, how: &[&str], out: &Path) -> (Vec<u8>, Vec<u8>, Value) {
+    let args =
+        [&["-q", "synth", s(analysis), "--plane", "40x32", "--seed", "5", "-o", s(out)][..], how].concat();
+    run_ok(&args);
+    plane_bytes(out)
+}
+
 /// Every preset, recorded by `synth`, copied out of plane.json and given back with
 /// --recipe, gives the same bytes.
 #[test]
@@ -37,37 +46,11 @@ fn every_recorded_recipe_gives_back_its_presets_output() {
     let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
     for preset in Preset::all() {
         let name = preset.name.as_str();
-        let by_name = dir.path().join(format!("{name}-preset"));
-        run_ok(&[
-            "-q",
-            "synth",
-            s(&analysis),
-            "--plane",
-            "40x32",
-            "--preset",
-            name,
-            "--seed",
-            "5",
-            "-o",
-            s(&by_name),
-        ]);
-        let (labels, uv, manifest) = plane_bytes(&by_name);
+        let (labels, uv, manifest) =
+            seeded_plane(&analysis, &["--preset", name], &dir.path().join(format!("{name}-preset")));
         let file = write_json(&dir.path().join(format!("{name}.json")), &manifest["params"]["recipe"]);
         let by_recipe = dir.path().join(format!("{name}-recipe"));
-        run_ok(&[
-            "-q",
-            "synth",
-            s(&analysis),
-            "--plane",
-            "40x32",
-            "--recipe",
-            s(&file),
-            "--seed",
-            "5",
-            "-o",
-            s(&by_recipe),
-        ]);
-        let (labels2, uv2, manifest2) = plane_bytes(&by_recipe);
+        let (labels2, uv2, manifest2) = seeded_plane(&analysis, &["--recipe", s(&file)], &by_recipe);
         assert!(labels == labels2 && uv == uv2, "{name}: the recipe's output differs from the preset's");
         assert_eq!(manifest2["params"]["recipe"], manifest["params"]["recipe"], "{name}");
         assert_eq!(manifest2["params"]["preset"], name);
@@ -98,21 +81,8 @@ fn older_recipe_gives_the_same_output(
     }
     let dir = analysis.parent().unwrap();
     let file = write_json(&dir.join(format!("{name}-older.json")), &older);
-    let out = dir.join(format!("{name}-older"));
-    run_ok(&[
-        "-q",
-        "synth",
-        s(analysis),
-        "--plane",
-        "40x32",
-        "--recipe",
-        s(&file),
-        "--seed",
-        "5",
-        "-o",
-        s(&out),
-    ]);
-    let (labels2, uv2, manifest) = plane_bytes(&out);
+    let (labels2, uv2, manifest) =
+        seeded_plane(analysis, &["--recipe", s(&file)], &dir.join(format!("{name}-older")));
     assert!(labels == labels2 && uv == uv2, "{name}: a recipe without stencils differs");
     assert_eq!(manifest["params"]["recipe"], *recipe, "{name}: recorded with its stencils");
 }
