@@ -1,7 +1,7 @@
 //! Every input layout on small fixtures: manifest, Bonn flat names, UTIA subfolders, single
 //! PNG / JPEG / EXR, and cropping.
 
-mod common;
+use crate::common;
 
 use btfsynth::btf::image_io::{srgb_to_linear, write_exr};
 use btfsynth::btf::{load, Crop, LoadOptions};

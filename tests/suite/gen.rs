@@ -1,7 +1,7 @@
 //! `gen`: the generated stacks read back exactly, and their mesostructure is real
 //! (shadows that lengthen with the light's elevation, parallax between views).
 
-mod common;
+use crate::common;
 
 use btfsynth::btf::gen::{generate, generate_pairs, GenParams, MaterialKind};
 use btfsynth::btf::{load, write_stack, Btf, Direction, DirectionSet, ImageFormat, LoadOptions};

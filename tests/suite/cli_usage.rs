@@ -2,7 +2,7 @@
 //! that shows what each command needs, outputs that cannot be written refused before any
 //! work, no Rust `Debug` text, and a README that lists every command.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, assert_usage_error, btfsynth, entries, BUNNY};
 

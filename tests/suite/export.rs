@@ -2,7 +2,7 @@
 //! surface map is the identity, the user's own UV layout survives, normal maps turn with the
 //! texture, maps keep their depth through `synth --plane`, and bad input is refused.
 
-mod common;
+use crate::common;
 
 use btfsynth::mesh::ply::{self, PropertyData, VertexProperty};
 use btfsynth::mesh::Mesh;

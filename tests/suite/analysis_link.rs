@@ -2,7 +2,7 @@
 //! any working directory (relative to the map, else at its absolute path), and a result
 //! offered the analysis of another sample is refused unless `--force-analysis`.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth, btfsynth_in, entries, BUNNY};
 use std::path::Path;

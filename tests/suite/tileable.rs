@@ -3,7 +3,7 @@
 //! wrap edge (where copies join) against the patch energy of the whole result, and against
 //! the same join of an ordinary plane, which the measure must see.
 
-mod common;
+use crate::common;
 
 use btfsynth::eval::picture::wrap_seam_energy;
 use btfsynth::eval::Picture;

@@ -1,7 +1,7 @@
 //! `render`: the identity map reproduces the sample, shadows fall where geometry puts them,
 //! a sequence is written in full, and bad input is refused with nothing written.
 
-mod common;
+use crate::common;
 
 use btfsynth::btf::{DirectionPair, DirectionSet};
 use btfsynth::mesh::frames::Frames;

@@ -1,6 +1,6 @@
 //! Bad input: one clear line naming the file, exit code 1, no panic, nothing written.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth, entries, pattern, write_png};
 

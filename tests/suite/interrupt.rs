@@ -7,7 +7,7 @@
 //! write them, so those runs set `BTFSYNTH_TEST_HOLD_STAGING_MS`, which keeps each
 //! temporary on disk a while once it exists, and the signal is sent then.
 
-mod common;
+use crate::common;
 
 use common::{btfsynth, entries, BUNNY};
 use std::path::Path;

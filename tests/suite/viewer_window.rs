@@ -5,7 +5,7 @@
 //! `BTFSYNTH_REQUIRE_XVFB=1` (set by CI) makes that a failure. Like the headless GPU
 //! tests, a machine without any wgpu adapter skips only with `BTFSYNTH_SKIP_GPU=1`.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

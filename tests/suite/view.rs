@@ -7,7 +7,7 @@
 //! this file twice: on Vulkan and with `WGPU_BACKEND=gl`.
 #![cfg(feature = "gpu")]
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth};
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! `synth --plane` and `eval`: a periodic sample is reproduced (by every preset), runs are deterministic, bad
 //! input is refused.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth, entries};
 

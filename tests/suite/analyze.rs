@@ -1,7 +1,7 @@
 //! `analyze`: planted textures are recovered, the stored arrays are consistent, runs are
 //! deterministic, and bad input is refused cleanly.
 
-mod common;
+use crate::common;
 
 use btfsynth::analysis::npy;
 use btfsynth::analysis::pipeline::{analyze, AnalysisParams};

@@ -2,7 +2,7 @@
 //! deliberate and explained in its commit), the recipe recorded in every output, and
 //! `--list-presets`.
 
-mod common;
+use crate::common;
 
 use common::btfsynth;
 use std::path::{Path, PathBuf};

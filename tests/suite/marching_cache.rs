@@ -2,7 +2,7 @@
 //! computed once, stored, and read back by a run with another texture direction, which
 //! then writes exactly the bytes a run without the cache writes.
 
-mod common;
+use crate::common;
 
 use common::{analyze_gravel_crop, assert_usage_error, btfsynth, BUNNY};
 use std::path::{Path, PathBuf};

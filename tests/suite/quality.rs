@@ -4,7 +4,7 @@
 //! whole-sample copy, no pile-up on the sample's border; and the measures themselves flag a
 //! verbatim tiling and a pixel shuffle.
 
-mod common;
+use crate::common;
 
 use btfsynth::synth::Preset;
 use common::btfsynth;
@@ -149,7 +149,7 @@ fn full_search_does_not_collapse_either() {
     for preset in Preset::all() {
         let refused = btfsynth::synth::Search::Full;
         if preset.check_search(refused).is_err() {
-            // Refused with one usage error line (tested in tests/presets.rs).
+            // Refused with one usage error line (tested in tests/suite/presets.rs).
             continue;
         }
         let out = plane(

@@ -1,7 +1,7 @@
 //! `synth ANALYSIS MESH`: a surface texton map on a real mesh, deterministic, described by
 //! `info`, and bad input refused.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth};
 

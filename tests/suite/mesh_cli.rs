@@ -1,6 +1,6 @@
 //! `remesh` and `info` on meshes through the CLI.
 
-mod common;
+use crate::common;
 
 use common::{assert_one_line_error, btfsynth, entries};
 

@@ -2,7 +2,7 @@
 //! it came from, a hand-edited one runs and is recorded as given, and a recipe the engine
 //! cannot run is refused with one line.
 
-mod common;
+use crate::common;
 
 use btfsynth::synth::{Mask, ParentNeighbourhood, Preset, Stencil};
 use common::{assert_usage_error, btfsynth, entries};

@@ -1,0 +1,30 @@
+//! The integration tests, linked into one binary. Every test binary links the whole crate
+//! with wgpu and its dependencies (over 100 MB before stripping), so one binary instead of
+//! twenty cuts a fresh clone's build time and disk use; each module here was once a file of
+//! its own and keeps its name (`cargo test --release --test suite view::` runs one).
+//!
+//! `tests/formats.rs` and `tests/mutation.rs` stay binaries of their own: each installs a
+//! global allocator that measures the loaders' requests, which must not watch the rest.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod analysis_link;
+mod analyze;
+mod bad_inputs;
+mod cli_usage;
+mod export;
+mod gen;
+mod interrupt;
+mod loaders;
+mod marching_cache;
+mod mesh_cli;
+mod presets;
+mod quality;
+mod recipes;
+mod render;
+mod surface;
+mod synth;
+mod tileable;
+mod view;
+mod viewer_window;
