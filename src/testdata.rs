@@ -12,7 +12,15 @@
 //! CI sets `BTFSYNTH_REQUIRE_GPU=1`, which turns a missing adapter into a failure.
 //! `BTFSYNTH_SKIP_GPU=1` skips the GPU tests outright ([`gpu_skipped`]).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// Prints `skipped: <test>: <why>` straight to the process's stderr. `eprintln!` would be
+/// captured by the test harness and shown only for failing tests, so a user running
+/// `cargo test` would never learn that a test skipped.
+pub fn announce_skip(test: &str, why: &str) {
+    let _ = writeln!(std::io::stderr(), "skipped: {test}: {why}");
+}
 
 /// The environment variable that makes missing shared data a failure (set by `.ci/run`).
 pub const REQUIRE_SHARED: &str = "BTFSYNTH_REQUIRE_SHARED";
@@ -38,7 +46,7 @@ pub fn shared_data_in(root: &Path, test: &str, relative: &str, required: bool) -
     if required {
         panic!("{test}: {why}, and {REQUIRE_SHARED}=1 requires it");
     }
-    eprintln!("skipped: {test}: {why}");
+    announce_skip(test, &why);
     None
 }
 
@@ -60,7 +68,7 @@ fn env_is_one(name: &str) -> bool {
 pub fn gpu_skipped(test: &str) -> bool {
     let skip = env_is_one(SKIP_GPU) && !env_is_one(REQUIRE_GPU);
     if skip {
-        eprintln!("skipped: {test}: {SKIP_GPU}=1");
+        announce_skip(test, &format!("{SKIP_GPU}=1"));
     }
     skip
 }
@@ -82,7 +90,7 @@ pub fn gpu_missing_in(test: &str, stderr: &str, required: bool) -> bool {
     if required {
         panic!("{test}: {why}, and {REQUIRE_GPU}=1 requires one; {stderr}");
     }
-    eprintln!("skipped: {test}: {why}");
+    announce_skip(test, &why);
     true
 }
 

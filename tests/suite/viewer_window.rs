@@ -7,6 +7,7 @@
 
 use crate::common;
 
+use btfsynth::testdata::announce_skip;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -126,11 +127,9 @@ fn next_screenshot(display: &str, window: &str, before: &image::RgbImage, thresh
 #[test]
 fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
     if let Some(missing) = TOOLS.iter().find(|t| !on_path(t)) {
-        let line = format!(
-            "skipped: the window test: {missing} is not installed (apt-get install xvfb imagemagick xdotool)"
-        );
-        assert!(std::env::var("BTFSYNTH_REQUIRE_XVFB").map_or(true, |v| v != "1"), "{line}");
-        eprintln!("{line}");
+        let why = format!("{missing} is not installed (apt-get install xvfb imagemagick xdotool)");
+        assert!(std::env::var("BTFSYNTH_REQUIRE_XVFB").map_or(true, |v| v != "1"), "the window test: {why}");
+        announce_skip("the window test", &why);
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -177,7 +176,7 @@ fn the_viewer_draws_the_model_in_a_window_and_answers_keys() {
         find_window(&display, (320, 240)).map(Some)
     });
     let Some(window) = window else {
-        eprintln!("skipped: the window test: BTFSYNTH_SKIP_GPU=1 and no GPU adapter");
+        announce_skip("the window test", "BTFSYNTH_SKIP_GPU=1 and no GPU adapter");
         return;
     };
 
