@@ -33,21 +33,27 @@ pub fn shared_root() -> PathBuf {
 /// `../shared/data/<relative>` if it exists. If not, prints `skipped: <test>: …` and
 /// returns `None`, or panics when [`REQUIRE_SHARED`] is `1`.
 pub fn shared_data(test: &str, relative: &str) -> Option<PathBuf> {
-    shared_data_in(&shared_root(), test, relative, std::env::var(REQUIRE_SHARED).is_ok_and(|v| v == "1"))
+    match shared_data_in(&shared_root(), test, relative, env_is_one(REQUIRE_SHARED)) {
+        Ok(path) => Some(path),
+        Err(why) => {
+            announce_skip(test, &why);
+            None
+        }
+    }
 }
 
-/// [`shared_data`] against an explicit root and requirement (so the skip path is testable).
-pub fn shared_data_in(root: &Path, test: &str, relative: &str, required: bool) -> Option<PathBuf> {
+/// [`shared_data`] against an explicit root and requirement, silent (so the skip path is
+/// testable): the path, or why the test skips.
+pub fn shared_data_in(root: &Path, test: &str, relative: &str, required: bool) -> Result<PathBuf, String> {
     let path = root.join(relative);
     if path.exists() {
-        return Some(path);
+        return Ok(path);
     }
     let why = format!("{} is absent (real data that may not ship; see README, Tests)", path.display());
     if required {
         panic!("{test}: {why}, and {REQUIRE_SHARED}=1 requires it");
     }
-    announce_skip(test, &why);
-    None
+    Err(why)
 }
 
 /// The environment variable that makes a missing GPU adapter a failure (set by `.ci/run`).
@@ -77,21 +83,25 @@ pub fn gpu_skipped(test: &str) -> bool {
 /// there is no adapter; panics instead when [`REQUIRE_GPU`] is `1`. False for any other
 /// outcome, which the test then judges itself.
 pub fn gpu_missing(test: &str, stderr: &str) -> bool {
-    gpu_missing_in(test, stderr, env_is_one(REQUIRE_GPU))
+    let why = gpu_missing_in(test, stderr, env_is_one(REQUIRE_GPU));
+    if let Some(why) = why {
+        announce_skip(test, why);
+    }
+    why.is_some()
 }
 
-/// [`gpu_missing`] with an explicit requirement (so the skip path is testable).
-pub fn gpu_missing_in(test: &str, stderr: &str, required: bool) -> bool {
+/// [`gpu_missing`] with an explicit requirement, silent (so the skip path is testable): why
+/// the test skips, if it does.
+pub fn gpu_missing_in(test: &str, stderr: &str, required: bool) -> Option<&'static str> {
     if !stderr.contains(NO_ADAPTER_MESSAGE) {
-        return false;
+        return None;
     }
     let why = "wgpu found no adapter (install Mesa's software drivers: apt-get install mesa-vulkan-drivers \
                libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri)";
     if required {
         panic!("{test}: {why}, and {REQUIRE_GPU}=1 requires one; {stderr}");
     }
-    announce_skip(test, &why);
-    true
+    Some(why)
 }
 
 #[cfg(test)]
@@ -101,23 +111,25 @@ mod tests {
     #[test]
     fn a_missing_file_skips_unless_required() {
         let root = Path::new("/nonexistent-btfsynth-shared");
-        assert_eq!(shared_data_in(root, "t", "meshes/x.obj", false), None);
+        let why = shared_data_in(root, "t", "meshes/x.obj", false).unwrap_err();
+        assert!(why.contains("meshes/x.obj is absent"), "{why}");
         let required = std::panic::catch_unwind(|| shared_data_in(root, "t", "meshes/x.obj", true));
         assert!(required.is_err(), "a required missing file must fail the test");
         let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-        assert_eq!(shared_data_in(here, "t", "Cargo.toml", true), Some(here.join("Cargo.toml")));
+        assert_eq!(shared_data_in(here, "t", "Cargo.toml", true), Ok(here.join("Cargo.toml")));
     }
 
     #[test]
     fn a_missing_adapter_skips_unless_required() {
         let none = format!("error: {NO_ADAPTER_MESSAGE} (wgpu found no Vulkan, Metal, DX12 or GL device)");
-        assert!(gpu_missing_in("t", &none, false));
+        assert!(gpu_missing_in("t", &none, false).is_some_and(|why| why.contains("no adapter")));
         let required = std::panic::catch_unwind(|| gpu_missing_in("t", &none, true));
         assert!(required.is_err(), "a required missing adapter must fail the test");
-        assert!(
-            !gpu_missing_in("t", "error: Format Rgba32Float is not renderable", false),
+        assert_eq!(
+            gpu_missing_in("t", "error: Format Rgba32Float is not renderable", false),
+            None,
             "other failures are not skips"
         );
-        assert!(!gpu_missing_in("t", "", true), "a run that found an adapter is not a skip");
+        assert_eq!(gpu_missing_in("t", "", true), None, "a run that found an adapter is not a skip");
     }
 }
