@@ -4,7 +4,8 @@
 # (128² crops) and one generated BTF (64², 81 directions). Writes, under OUT:
 #   presets.md       one row per preset and material: seconds per stage (remesh, frames,
 #                    templates, synthesis per level) and every quality measure of `btfsynth eval`
-#   contact.png      rows: presets, columns: materials (rendered with `btfsynth render`)
+#   contact.png      rows: the sample (head-on, light at 45°, `btfsynth relight`), then the
+#                    presets; columns: materials (rendered with `btfsynth render`)
 # Needs jq and python3 with Pillow (for the contact sheet).
 #   benches/presets.sh [--out DIR] [--vertices N]
 set -euo pipefail
@@ -40,6 +41,9 @@ if [ ! -d "$out/btf-pebbles.analysis" ]; then
   $bin -q analyze "$out/btf-pebbles" --force -o "$out/btf-pebbles.analysis"
 fi
 materials+=(btf-pebbles)
+for m in "${materials[@]}"; do
+  $bin -q relight "$out/$m.analysis" --view 0,0 --light 45,0 --force -o "$out/sample-$m.png"
+done
 
 presets=$($bin synth --list-presets | awk '{print $1}')
 table="$out/presets.md"
@@ -73,11 +77,14 @@ import glob, os, sys
 from PIL import Image, ImageDraw
 out, materials, presets = sys.argv[1], sys.argv[2].split(), sys.argv[3:]
 cell, label = 320, 110
-sheet = Image.new("RGB", (label + cell * len(materials), 24 + cell * len(presets)), "white")
+sheet = Image.new("RGB", (label + cell * len(materials), 24 + cell * (1 + len(presets))), "white")
 draw = ImageDraw.Draw(sheet)
+draw.text((8, 24 + cell // 2), "sample", fill="black")
 for j, m in enumerate(materials):
     draw.text((label + j * cell + 8, 6), m, fill="black")
-for i, p in enumerate(presets):
+    sample = Image.open(os.path.join(out, f"sample-{m}.png")).convert("RGB")
+    sheet.paste(sample.resize((cell, cell), Image.BICUBIC), (label + j * cell, 24))
+for i, p in enumerate(presets, start=1):
     draw.text((8, 24 + i * cell + cell // 2), p, fill="black")
     for j, m in enumerate(materials):
         frames = sorted(glob.glob(os.path.join(out, f"render-{p}-{m}", "*.png")))
