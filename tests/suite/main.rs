@@ -1,7 +1,8 @@
 //! The integration tests, linked into one binary. Every test binary links the whole crate
-//! with wgpu and its dependencies (over 100 MB before stripping), so one binary instead of
-//! twenty cuts a fresh clone's build time and disk use; each module here was once a file of
-//! its own and keeps its name (`cargo test --release --test suite view::` runs one).
+//! with wgpu and its dependencies, so one binary instead of twenty cuts a fresh clone's build
+//! time and disk use; each module here was once a file of its own and keeps its name
+//! (`cargo test --release --test suite view::` runs one). A new test file belongs in this
+//! folder as one more module, not beside it in `tests/`, where it would link on its own.
 //!
 //! `tests/formats.rs` and `tests/mutation.rs` stay binaries of their own: each installs a
 //! global allocator that measures the loaders' requests, which must not watch the rest.
