@@ -38,6 +38,22 @@ fn seeded_plane(analysis: &Path, how: &[&str], out: &Path) -> (Vec<u8>, Vec<u8>,
     plane_bytes(out)
 }
 
+/// The 3000-vertex bunny synthesized by the recipe in `file`, into `ply`.
+fn synth_bunny_by_recipe(analysis: &Path, file: &Path, ply: &Path) {
+    run_ok(&[
+        "-q",
+        "synth",
+        s(analysis),
+        common::BUNNY,
+        "--vertices",
+        "3000",
+        "--recipe",
+        s(file),
+        "-o",
+        s(ply),
+    ]);
+}
+
 /// Every preset, recorded by `synth`, copied out of plane.json and given back with
 /// --recipe, gives the same bytes.
 #[test]
@@ -112,18 +128,7 @@ fn a_hand_edited_recipe_runs_and_is_recorded_as_given() {
     assert!(labels != default_labels || uv != default_uv, "the edited recipe was not the one run");
 
     let ply = dir.path().join("bunny.ply");
-    run_ok(&[
-        "-q",
-        "synth",
-        s(&analysis),
-        common::BUNNY,
-        "--vertices",
-        "3000",
-        "--recipe",
-        s(&file),
-        "-o",
-        s(&ply),
-    ]);
+    synth_bunny_by_recipe(&analysis, &file, &ply);
     let map = btfsynth::synth::surface_map::read_surface_ply(&ply).unwrap();
     let params: Value = serde_json::from_str(map.comment("params").unwrap()).unwrap();
     assert_eq!(params["recipe"], recipe);
@@ -330,18 +335,7 @@ fn colour_recipes_run_on_planes_meshes_and_btfs() {
             assert_eq!(plane_bytes(&out).2["params"]["recipe"], common::colour_recipe(&preset).to_json());
         }
         let ply = dir.path().join(format!("{}.ply", preset.name));
-        run_ok(&[
-            "-q",
-            "synth",
-            s(&analysis),
-            common::BUNNY,
-            "--vertices",
-            "3000",
-            "--recipe",
-            s(&file),
-            "-o",
-            s(&ply),
-        ]);
+        synth_bunny_by_recipe(&analysis, &file, &ply);
         assert!(btfsynth::synth::surface_map::read_surface_ply(&ply).is_ok());
     }
     let stack = dir.path().join("pebbles");
