@@ -186,9 +186,10 @@ impl Preset {
     ///
     /// The patches' radius is 0.15 of the coarsest level's side. At 0.35 (before) each
     /// patch, inherited up the pyramid, copied ~80% of the sample, so every distinctive
-    /// feature recurred once per patch on a near-regular lattice: `eval`'s repetition 0.11–0.12
-    /// on stone33 (128² → 512², seeds 0–1) against Resynthesizer's 0.04; at 0.15 it is 0.03,
-    /// at the cost of 30% more patch energy (0.0020 → 0.0026, Embark 0.0029). A sample that
+    /// feature recurred once per patch on a near-regular lattice: `eval`'s repetition 0.087
+    /// on stone33 (128² → 512²) against Resynthesizer's 0.030; at 0.15 (with varied seed
+    /// spacing) 0.020–0.027 over seeds 0–3, at the cost of 30% more patch energy (0.0020 →
+    /// 0.0026, Embark 0.0029). A sample that
     /// holds a single element (one tile) loses whole elements at this size; a recipe with a
     /// larger radius keeps them (README, Synthesis quality).
     fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
