@@ -28,6 +28,12 @@ pub enum VisitOrder {
     /// The unvisited vertex with the most visited neighbours next (Chen and Dong §6,
     /// [`super::constrained`]).
     MostConstrained,
+    /// Order-independent (Lefebvre and Hoppe 2005): sub-passes, one per colour of a
+    /// colouring in which no vertex reads another of its colour, each matched in parallel
+    /// ([`super::pass::run_interleaved_pass`]). The same result at any thread count. A level
+    /// whose colouring needs more than [`super::pass::MAX_COLOURS`] colours is visited in a
+    /// seeded random order instead.
+    Interleaved,
 }
 
 /// What one pass found.
@@ -138,6 +144,8 @@ pub fn visit_order(
         (VisitOrder::Random, _) => ids.shuffle(rng),
         (VisitOrder::Sweep, Some(s)) => ids.sort_by(|&a, &b| s[a as usize].total_cmp(&s[b as usize])),
         (VisitOrder::MostConstrained, _) => return super::constrained::most_constrained_order(level, rng),
+        // Only reached where the level has no colouring: the nearest sequential order.
+        (VisitOrder::Interleaved, _) => ids.shuffle(rng),
         _ => {}
     }
     ids

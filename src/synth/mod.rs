@@ -37,7 +37,8 @@ use crate::progress::Progress;
 use crate::{Error, Result};
 use engine::{visit_order, PassPlan, PassStats};
 use metric::{AppearanceMetric, GammaMetric, Metric};
-use rand::SeedableRng;
+use pass::{Colouring, Schedule};
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use recipe::pass_search;
 use round::{RoundSample, RoundStencil};
@@ -132,10 +133,22 @@ pub fn synthesize(
         };
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
+        let interleaved = recipe.passes.iter().any(|p| p.order == VisitOrder::Interleaved);
+        let colouring = interleaved.then(|| Colouring::of(target)).flatten();
         for p in &recipe.passes {
-            let order = visit_order(target, p.order, sweep.as_ref().map(|s| s[l].as_slice()), &mut rng);
+            let schedule = match (&colouring, p.order) {
+                (Some(colouring), VisitOrder::Interleaved) => {
+                    Schedule::Interleaved { colouring, seed: rng.random() }
+                }
+                _ => Schedule::Order(visit_order(
+                    target,
+                    p.order,
+                    sweep.as_ref().map(|s| s[l].as_slice()),
+                    &mut rng,
+                )),
+            };
             let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref(), rounds: rounds.as_ref() };
-            stats = run_pass(p, &level, &mut current, params, &order, &mut rng)?;
+            stats = run_pass(p, &level, &mut current, params, &schedule, &mut rng)?;
             progress.advance(1);
         }
         let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
@@ -194,7 +207,7 @@ fn run_pass(
     inputs: &LevelInputs,
     state: &mut State,
     params: &SynthParams,
-    order: &[u32],
+    order: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
     Ok(match p.metric {
@@ -219,12 +232,12 @@ fn run_pass(
 }
 
 #[allow(clippy::too_many_arguments)]
-fn run_pass_with<'a, M: Metric>(
+fn run_pass_with<'a, M: Metric + Sync>(
     p: &Pass,
     inputs: &LevelInputs<'a>,
     state: &mut State,
     params: &SynthParams,
-    order: &[u32],
+    order: &Schedule,
     rng: &mut ChaCha8Rng,
     metric: impl Fn(&'a SampleLevel, usize) -> M,
 ) -> PassStats {
@@ -252,8 +265,8 @@ fn run_pass_with<'a, M: Metric>(
         select: p.select,
         coherence_bias: p.coherence_bias,
     };
-    let mut matcher = SquareMatch::new(target, level_sample, &own, parent.as_ref(), p.mask);
-    pass::run_pass(target, state, level_sample, &mut matcher, &plan, order, rng)
+    let make = || SquareMatch::new(target, level_sample, &own, parent.as_ref(), p.mask);
+    pass::run_scheduled_pass(target, state, level_sample, make, &plan, order, rng)
 }
 
 /// Random patches on `target`, their seams matched with the metric `kind`.

@@ -182,8 +182,15 @@ impl Preset {
     }
 
     /// Tong's schedule with `metric`: random patches and four full passes on the coarsest
-    /// level; inheritance and two two-level passes on every finer one; random order, choosy
-    /// selection and a coherence bias throughout.
+    /// level; inheritance and two two-level passes on every finer one; interleaved
+    /// (order-independent, parallel) visiting, choosy selection and a coherence bias
+    /// throughout.
+    ///
+    /// Tong visits vertices one after the other in random order; the interleaved sub-passes
+    /// of Lefebvre and Hoppe run each sub-pass on every core and give the same bytes at any
+    /// thread count. Measured on 128² crops of stone33 and pebbles → 512², seeds 0–1: patch
+    /// energy, colour χ² and repetition within ±0.001 of the random order's (stone33
+    /// repetition 0.025/0.022 against 0.026/0.023), synthesis 1.8× faster on 2 cores.
     ///
     /// The patches' radius is 0.15 of the coarsest level's side. At 0.35 (before) each
     /// patch, inherited up the pyramid, copied ~80% of the sample, so every distinctive
@@ -195,7 +202,7 @@ impl Preset {
     /// (docs/quality.md).
     fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
         let pass = |parent| Pass {
-            order: VisitOrder::Random,
+            order: VisitOrder::Interleaved,
             stencil: Stencil::Square,
             mask: Mask::Full,
             parent,

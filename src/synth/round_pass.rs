@@ -9,7 +9,7 @@ use super::adaptive::{choose_weighted, RoundQuery, Scratch};
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
-use super::pass::{run_pass, Choice, VertexMatch};
+use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
 use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
 use super::sample::{AppearanceMap, SampleLevel};
@@ -95,24 +95,29 @@ pub struct RoundMatch<'a> {
 }
 
 impl<'a> RoundMatch<'a> {
-    /// The round neighbourhoods of `round` against `round_sample` (resampled from `sample`'s
-    /// appearance vectors), for a pass under `mask`: [`Mask::Visited`] (a level synthesized
-    /// from nothing: only vertices visited so far are compared) or [`Mask::Full`] (refining).
+    /// The round neighbourhoods of `round` against `round_sample`, resampled from `map`,
+    /// the appearance vectors of `sample` ([`RoundMatch::appearance`]).
     pub fn new(
         round: &'a RoundTarget<'a>,
         sample: &'a SampleLevel,
+        map: &'a AppearanceMap,
         round_sample: &'a RoundSample,
-        mask: Mask,
-    ) -> Result<Self> {
+    ) -> Self {
+        let (query, slots, scratch) = Default::default();
+        RoundMatch { round, sample, map, round_sample, query, slots, scratch }
+    }
+
+    /// The appearance vectors of `sample` a pass under `mask` compares: [`Mask::Visited`]
+    /// (a level synthesized from nothing: only vertices visited so far are compared) or
+    /// [`Mask::Full`] (refining) are the masks it can run under.
+    pub fn appearance(sample: &SampleLevel, mask: Mask) -> Result<&AppearanceMap> {
         if !matches!(mask, Mask::Visited | Mask::Full) {
             return Err(Error::invalid("an adaptive pass compares visited vertices or all of them"));
         }
-        let map = sample
+        sample
             .appearance
             .as_ref()
-            .ok_or_else(|| Error::invalid("the adaptive metric needs appearance vectors"))?;
-        let (query, slots, scratch) = Default::default();
-        Ok(RoundMatch { round, sample, map, round_sample, query, slots, scratch })
+            .ok_or_else(|| Error::invalid("the adaptive metric needs appearance vectors"))
     }
 }
 
@@ -169,10 +174,10 @@ impl VertexMatch for RoundMatch<'_> {
     }
 }
 
-/// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`)
-/// or, with [`Search::Full`], every candidate texel, picked as `select` says with `bias`
-/// on candidates that start a new copy (as the square passes weigh them): the pass loop
-/// with a [`RoundMatch`].
+/// One adaptive pass over `level` under `schedule`, from k-coherence candidates (lists of
+/// `k`) or, with [`Search::Full`], every candidate texel, picked as `select` says with
+/// `bias` on candidates that start a new copy (as the square passes weigh them): the pass
+/// loop with a [`RoundMatch`].
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
     level: &TargetLevel,
@@ -181,12 +186,13 @@ pub fn adaptive_pass(
     sample: &SampleLevel,
     round_sample: &RoundSample,
     (search, mask, select, coherence_bias): (Search, Mask, Select, f32),
-    order: &[u32],
+    schedule: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
-    let mut matcher = RoundMatch::new(round, sample, round_sample, mask)?;
+    let map = RoundMatch::appearance(sample, mask)?;
+    let make = || RoundMatch::new(round, sample, map, round_sample);
     let plan = PassPlan { search, select, coherence_bias, mask };
-    Ok(run_pass(level, state, sample, &mut matcher, &plan, order, rng))
+    Ok(run_scheduled_pass(level, state, sample, make, &plan, schedule, rng))
 }
 
 #[cfg(test)]
@@ -253,19 +259,47 @@ mod tests {
         let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
         let round = RoundTarget::Grid { width: 32, height: 32, wraps: true };
         let full = (Search::KCoherence { k: 4 }, Mask::Full, Select::Argmin, 0.0);
-        adaptive_pass(level, &round, &mut state, &sample, &round_sample, full, &order, &mut rng).unwrap();
+        adaptive_pass(
+            level,
+            &round,
+            &mut state,
+            &sample,
+            &round_sample,
+            full,
+            &Schedule::Order(order.clone()),
+            &mut rng,
+        )
+        .unwrap();
         assert_eq!(state.labels, before.labels);
         let half = (Search::KCoherence { k: 4 }, Mask::Half, Select::Argmin, 0.0);
-        assert!(
-            adaptive_pass(level, &round, &mut state, &sample, &round_sample, half, &order, &mut rng).is_err()
-        );
+        assert!(adaptive_pass(
+            level,
+            &round,
+            &mut state,
+            &sample,
+            &round_sample,
+            half,
+            &Schedule::Order(order.clone()),
+            &mut rng
+        )
+        .is_err());
         // A random start is pulled towards the sample: most vertices then continue a
         // neighbour's copy (their texel is a neighbour's shifted by one step).
         let mut state = crate::synth::start::random_state(level, &sample, 4, &mut rng);
         for mask in [Mask::Visited, Mask::Full] {
             let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
             let how = (Search::KCoherence { k: 4 }, mask, Select::Argmin, 0.0);
-            adaptive_pass(level, &round, &mut state, &sample, &round_sample, how, &order, &mut rng).unwrap();
+            adaptive_pass(
+                level,
+                &round,
+                &mut state,
+                &sample,
+                &round_sample,
+                how,
+                &Schedule::Order(order),
+                &mut rng,
+            )
+            .unwrap();
         }
         let coherent = (0..32 * 32)
             .filter(|&v| {
