@@ -4,37 +4,12 @@
 
 use super::candidates::{full_candidates, Coherence, Search};
 use super::recipe::Mask;
+pub use super::recipe::{Select, VisitOrder};
 use super::sample::SampleLevel;
+pub use super::state::State;
 use super::target::TargetLevel;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-
-/// The surface texton map of one level: per vertex a texton label and a sample coordinate.
-#[derive(Clone, Debug, PartialEq)]
-pub struct State {
-    pub labels: Vec<u16>,
-    pub uv: Vec<[i32; 2]>,
-}
-
-/// Order in which a pass visits the vertices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum VisitOrder {
-    /// A fresh seeded permutation every pass.
-    Random,
-    /// Vertex index order (scanline order on a plane).
-    Sequential,
-    /// Increasing sweep distance along the texture direction (Turk §4.2, [`super::sweep`]).
-    Sweep,
-    /// The unvisited vertex with the most visited neighbours next (Chen and Dong §6,
-    /// [`super::constrained`]).
-    MostConstrained,
-    /// Order-independent (Lefebvre and Hoppe 2005): sub-passes, one per colour of a
-    /// colouring in which no vertex reads another of its colour, each matched in parallel
-    /// ([`super::pass::run_interleaved_pass`]). The same result at any thread count. A level
-    /// whose colouring needs more than [`super::pass::MAX_COLOURS`] colours is visited in a
-    /// seeded random order instead.
-    Interleaved,
-}
 
 /// What one pass found.
 #[derive(Clone, Copy, Debug, Default)]
@@ -43,20 +18,6 @@ pub struct PassStats {
     pub mean_best: f64,
     /// Mean candidate-set size.
     pub mean_candidates: f64,
-}
-
-/// How a vertex picks among its candidates.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum Select {
-    /// The smallest distance (Tong §5.1).
-    Argmin,
-    /// Choosy sampling (Castellanos and Williams §3.11, adapted): the distance is multiplied
-    /// by 1 + strength · excess², excess being how far beyond its fair share (output
-    /// vertices over candidate texels) the texel is already used on this level. Exact matches
-    /// (distance 0) keep winning, so coherent copies are untouched; among inexact ones, the
-    /// texels the level leans on too often lose, which keeps the first-order statistics.
-    Choosy { strength: f32 },
 }
 
 /// How a pass runs.

@@ -5,7 +5,6 @@
 //! `synth` records the whole recipe in its outputs, so a result says how it was made.
 
 use super::candidates::Search;
-use super::engine::{Select, VisitOrder};
 use super::round::RoundStencil;
 use super::sample::{AppearanceMap, SampleLevel};
 use crate::{Error, Result};
@@ -69,6 +68,40 @@ pub enum Stencil {
     /// reach); 1 to [`MAX_CIRCLES`], and each candidate keeps a border of `circles + 1`
     /// texels, which the coarsest sample level in use must hold unless it tiles.
     Round { circles: usize },
+}
+
+/// Order in which a pass visits the vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum VisitOrder {
+    /// A fresh seeded permutation every pass.
+    Random,
+    /// Vertex index order (scanline order on a plane).
+    Sequential,
+    /// Increasing sweep distance along the texture direction (Turk §4.2, [`super::sweep`]).
+    Sweep,
+    /// The unvisited vertex with the most visited neighbours next (Chen and Dong §6,
+    /// [`super::constrained`]).
+    MostConstrained,
+    /// Order-independent (Lefebvre and Hoppe 2005): sub-passes, one per colour of a
+    /// colouring in which no vertex reads another of its colour, each matched in parallel
+    /// ([`super::pass::run_interleaved_pass`]). The same result at any thread count. A level
+    /// whose colouring needs more than [`super::pass::MAX_COLOURS`] colours is visited in a
+    /// seeded random order instead.
+    Interleaved,
+}
+
+/// How a vertex picks among its candidates.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Select {
+    /// The smallest distance (Tong §5.1).
+    Argmin,
+    /// Choosy sampling (Castellanos and Williams §3.11, adapted): the distance is multiplied
+    /// by 1 + strength · excess², excess being how far beyond its fair share (output
+    /// vertices over candidate texels) the texel is already used on this level. Exact matches
+    /// (distance 0) keep winning, so coherent copies are untouched; among inexact ones, the
+    /// texels the level leans on too often lose, which keeps the first-order statistics.
+    Choosy { strength: f32 },
 }
 
 /// Which of the level's own template pixels a pass compares.

@@ -8,12 +8,12 @@
 use super::adaptive::{choose_weighted, RoundQuery, Scratch};
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
+use super::flatten::slot;
 use super::metric::known_parts;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
 use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
 use super::sample::{AppearanceMap, SampleLevel};
-use super::surface::slot;
 use super::target::{Slot, TargetLevel, OUTSIDE};
 use crate::{Error, Result};
 use rand_chacha::ChaCha8Rng;

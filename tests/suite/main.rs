@@ -21,6 +21,7 @@ mod interrupt;
 mod loaders;
 mod marching_cache;
 mod mesh_cli;
+mod modules;
 mod pipeline;
 mod presets;
 mod quality;
