@@ -14,7 +14,6 @@ const SRC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/src");
 const KNOWN_CYCLES: &[&[&str]] = &[
     &["analysis/store.rs", "maps/mod.rs"],
     &["btf/archive.rs", "btf/load.rs", "btf/source.rs", "btf/ubo2014/mod.rs"],
-    &["render/ambient.rs", "render/cpu.rs", "render/scene.rs"],
 ];
 
 /// Every source file's text, by its path under `src/`.
