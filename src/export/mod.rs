@@ -22,7 +22,7 @@ pub mod textures;
 
 use crate::btf::Direction;
 use crate::fsutil::{check_target, write_file_atomic};
-use crate::maps::{open_maps, MapKind};
+use crate::maps::{stored::open_maps, MapKind};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::textured::{load_textured, TexturedMesh};
 use crate::progress::Progress;

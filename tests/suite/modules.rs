@@ -11,10 +11,7 @@ const SRC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/src");
 
 /// Cycles not broken yet, each as its sorted files. Remove an entry once its cycle is gone;
 /// a new cycle fails the test.
-const KNOWN_CYCLES: &[&[&str]] = &[
-    &["analysis/store.rs", "maps/mod.rs"],
-    &["btf/archive.rs", "btf/load.rs", "btf/source.rs", "btf/ubo2014/mod.rs"],
-];
+const KNOWN_CYCLES: &[&[&str]] = &[&["btf/archive.rs", "btf/load.rs", "btf/source.rs", "btf/ubo2014/mod.rs"]];
 
 /// Every source file's text, by its path under `src/`.
 fn sources() -> BTreeMap<String, String> {
