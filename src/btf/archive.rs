@@ -3,7 +3,7 @@
 //! unpacking anything to disk.
 
 use crate::btf::image_io::{crop_image, decoded_to_linear, RgbImage};
-use crate::btf::load::pair_from_name;
+use crate::btf::names::pair_from_name;
 use crate::btf::source::{resolve_crop, ImageSource};
 use crate::btf::{Crop, DirectionPair};
 use crate::{Error, Result};

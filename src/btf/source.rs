@@ -3,8 +3,8 @@
 //! A measured BTF file can hold far more than memory: a 400×400 UBO2014 material is
 //! 22,801 images, 22 GB as f16. An [`ImageSource`] knows its size and directions up front
 //! and decodes image `i` when asked, so `info` reads only a header, `convert` streams image
-//! by image, and `--crop` decodes only the crop. [`open`] gives the lazy source of a `.btf`
-//! file or a zip archive; [`Btf`] itself is the in-memory source.
+//! by image, and `--crop` decodes only the crop. [`crate::btf::stack_file::open`] gives the
+//! lazy source of a `.btf` file or a zip archive; [`Btf`] itself is the in-memory source.
 
 use crate::btf::{Btf, Crop, DirectionPair};
 use crate::progress::Progress;
@@ -68,20 +68,6 @@ impl ImageSource for Btf {
     fn decode_all(&self, _progress: &dyn Progress) -> Result<Btf> {
         Ok(self.clone())
     }
-}
-
-/// The lazy source of a file that holds a whole stack (a Bonn `.btf` file or a zip of
-/// UBO2003/ATRIUM images), restricted to `crop`; `None` if `path` is not such a file
-/// (a directory, a manifest or one image, which [`crate::btf::load()`] reads).
-pub fn open(path: &Path, crop: Option<Crop>) -> Result<Option<Box<dyn ImageSource>>> {
-    if crate::btf::ubo2014::is_bonn_file(path) {
-        let file = crate::btf::ubo2014::BonnBtf::open(path)?;
-        return Ok(Some(Box::new(file.into_window(crop)?)));
-    }
-    if crate::btf::archive::is_zip(path) {
-        return Ok(Some(Box::new(crate::btf::archive::ZipStack::open(path, crop)?)));
-    }
-    Ok(None)
 }
 
 /// Fails with a message that suggests `--crop` when `images` decoded images of
