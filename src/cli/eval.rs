@@ -112,6 +112,14 @@ fn table(args: &EvalArgs, e: &Evaluation) -> String {
             p.probe.name, p.probe.view[0], p.probe.view[1], p.probe.light[0], p.probe.light[1],
             q.patch_energy, q.patch_energy_coarse, q.colour_chi2, q.contrast
         );
+        let r = &q.repetition;
+        if r.repetition.is_finite() {
+            let _ = writeln!(
+                out,
+                "    repetition {:.3} (strongest at {},{} px), unused sample {:.3}, use spread {:.2}",
+                r.repetition, r.repeat_offset[0], r.repeat_offset[1], r.unused, r.use_spread
+            );
+        }
         if let Some(seam) = p.wrap_seam_energy {
             let _ = writeln!(out, "    across the wrap edge (tileable output): patch energy {seam:.5}");
         }
