@@ -96,6 +96,17 @@ fn an_output_that_is_holds_or_lies_inside_an_input_is_refused() {
     let r = btfsynth(&["remesh", s(&mesh), "--vertices", "300", "-o", s(&mesh), "--force"]);
     assert_one_line_error(&r, "is the input");
     assert_eq!(std::fs::read(&mesh).unwrap(), std::fs::read(BUNNY).unwrap());
+
+    // The analysis a surface map names is an input of export and render, given or not.
+    let ply = dir.path().join("s.ply");
+    let r = btfsynth(&["-q", "synth", a, BUNNY, "--vertices", "1500", "-o", s(&ply)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let before = snapshot(&analysis);
+    let r = btfsynth(&["export", s(&ply), "-o", &format!("{a}/x.glb")]);
+    assert_one_line_error(&r, "lies inside the input");
+    let r = btfsynth(&["render", s(&ply), "--size", "16x16", "-o", &format!("{a}/frames")]);
+    assert_one_line_error(&r, "lies inside the input");
+    assert_eq!(snapshot(&analysis), before, "the analysis is untouched");
 }
 
 #[test]
