@@ -333,3 +333,18 @@ fn a_filter_bank_of_thousands_is_refused_before_it_is_built() {
     let r = btfsynth(&["analyze", texture, "--filters", bank.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert_one_line_error(&r, "big.toml: 20000 filters; a bank holds at most 256");
 }
+
+#[test]
+fn converting_an_incomplete_stack_to_a_btf_file_names_the_stack() {
+    let dir = tempfile::tempdir().unwrap();
+    let stack = dir.path().join("stack");
+    std::fs::create_dir(&stack).unwrap();
+    // Two views and two lights, but the fourth pair is missing.
+    for name in ["tl000_pl000_tv000_pv000", "tl015_pl000_tv000_pv000", "tl000_pl000_tv015_pv000"] {
+        write_png(&stack.join(format!("{name}.png")), 8, 8, pattern(0));
+    }
+    let out = dir.path().join("s.btf");
+    let r = btfsynth(&["convert", stack.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_one_line_error(&r, "stack: a DFMF file needs every view × light pair: this stack has 3 images");
+    assert!(!out.exists(), "nothing written");
+}
