@@ -56,13 +56,16 @@ fn local_tolerances(positions: &[Vec3], triangles: &[[u32; 3]], relative: f32, c
     shortest.into_iter().map(|s| if s.is_finite() { (relative * s).min(cap) } else { 0.0 }).collect()
 }
 
+/// Vertices by grid cell.
+type Grid = HashMap<[i64; 3], Vec<u32>>;
+
 /// Kept vertices are hashed into grids, one per octave of tolerance (cells twice the
 /// octave's largest tolerance), so a match lies in one of the 27 cells around a vertex's
 /// own in each grid, however much the tolerances vary.
 fn weld_within(positions: &[Vec3], tolerance: &[f32]) -> (Vec<u32>, usize) {
     let cell_of = |p: Vec3, cell: f32| (p / cell).floor().to_array().map(|c| c as i64);
     let mut exact: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
-    let mut grids: BTreeMap<i32, (f32, HashMap<[i64; 3], Vec<u32>>)> = BTreeMap::new();
+    let mut grids: BTreeMap<i32, (f32, Grid)> = BTreeMap::new();
     let mut remap = Vec::with_capacity(positions.len());
     let mut merged = 0;
     for (i, (&p, &t)) in positions.iter().zip(tolerance).enumerate() {

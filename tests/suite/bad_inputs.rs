@@ -127,11 +127,14 @@ fn damaged_analysis(from: &std::path::Path, to: &std::path::Path, name: &str, ed
     }
 }
 
+/// A damaged analysis' name, the array damaged and how.
+type Damage = (&'static str, &'static str, fn(&mut Vec<f32>));
+
 #[test]
 fn nan_and_out_of_range_arrays_are_refused_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = common::analyze_gravel_crop(dir.path(), "a");
-    let cases: [(&str, &str, fn(&mut Vec<f32>)); 6] = [
+    let cases: [Damage; 6] = [
         ("nan-appearance", "level0_appearance.npy", |d| d[5] = f32::NAN),
         ("inf-gamma", "level1_gamma.npy", |d| d[1] = f32::INFINITY),
         ("nan-embedding", "level0_embedding.npy", |d| d[0] = f32::NAN),
