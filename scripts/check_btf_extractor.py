@@ -98,7 +98,10 @@ def lights_not_views_stack(btfsynth, stack, tmp):
         if entry["view"] not in views:
             views.append(entry["view"])
     keep = [dict(e, file=os.path.join(os.path.abspath(stack), e["file"])) for e in manifest["images"] if e["view"] in views[:3]]
-    subset = os.path.join(tmp, "subset.json")
+    # The manifest's folder counts as an input (its images are named relative to it), so the
+    # manifest gets a folder of its own, apart from the outputs.
+    os.makedirs(os.path.join(tmp, "subset"))
+    subset = os.path.join(tmp, "subset", "subset.json")
     with open(subset, "w") as f:
         json.dump({"images": keep}, f)
     return subset, len(keep)
