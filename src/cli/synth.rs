@@ -84,9 +84,11 @@ pub struct SynthArgs {
     search: SearchKind,
     /// The engine's recipe, named after its paper: appearance (default: Tong's engine
     /// matched on appearance vectors), tong2002 (Tong's texton distances through Γ),
-    /// turk2001 (Turk's sweep, half-square start, extrapolate and refine passes) or chen2008
-    /// (Chen and Dong's round neighbourhoods, adaptive metric, most-constrained-first order). The whole
-    /// recipe is recorded in the output. See --list-presets.
+    /// turk2001 (Turk's sweep, half-square start, extrapolate and refine passes), chen2008
+    /// (Chen and Dong's round neighbourhoods, adaptive metric, most-constrained-first order) or
+    /// castellanos (Castellanos and Williams' choosy sampling of colour neighbourhoods, random
+    /// order, an exhaustive coarsest level). The whole recipe is recorded in the output. See
+    /// --list-presets.
     #[arg(long, default_value = "appearance")]
     preset: String,
     /// Run the recipe in this JSON file instead of a preset: the form `synth` records as

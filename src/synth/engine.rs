@@ -34,60 +34,104 @@ pub struct PassPlan {
     pub mask: Mask,
 }
 
-/// The factor on candidate `q`'s distance for a vertex now at `current`: choosy
-/// selection's usage penalty times the coherence bias on candidates that start a new copy.
+/// The factor on candidate `q`'s distance for a vertex now at `current`, whose candidates'
+/// least use count is `floor` ([`Usage::floor`]): the selection's usage penalty times the
+/// coherence bias on candidates that start a new copy.
 #[inline]
 pub(crate) fn selection_factor(
     usage: &Usage,
     coherence: &Coherence,
     q: u32,
-    current: [i32; 2],
+    (current, floor): ([i32; 2], u32),
     bias: f32,
 ) -> f32 {
     let fresh = if coherence.continues(q) { 1.0 } else { 1.0 + bias };
-    usage.factor(q, current) * fresh
+    usage.factor(q, current, floor) * fresh
 }
 
-/// How often each texel is in use on the level, for [`Select::Choosy`].
+/// How often each texel is used on the level, for the selections that penalize use.
 pub(crate) struct Usage {
     width: usize,
-    /// Per texel, the vertices whose coordinate it is (empty for [`Select::Argmin`]).
+    /// Per texel: for [`Select::Choosy`] the vertices whose coordinate it is, for
+    /// [`Select::UsePenalty`] the times it was chosen in this pass (empty for Argmin).
     count: Vec<u32>,
-    fair: f32,
-    strength: f32,
+    rule: UsageRule,
+}
+
+enum UsageRule {
+    Argmin,
+    /// [`Select::Choosy`]: texels beyond their fair share of uses lose.
+    FairShare {
+        fair: f32,
+        strength: f32,
+    },
+    /// [`Select::UsePenalty`]: `base`^(c − c_min), c_min from [`Usage::floor`].
+    Chosen {
+        base: f32,
+    },
 }
 
 impl Usage {
     pub(crate) fn new(sample: &SampleLevel, state: &State, radius: usize, select: Select) -> Self {
-        let Select::Choosy { strength } = select else {
-            return Usage { width: sample.width, count: Vec::new(), fair: 1.0, strength: 0.0 };
-        };
-        let mut count = vec![0u32; sample.width * sample.height];
-        for &[x, y] in &state.uv {
-            count[y as usize * sample.width + x as usize] += 1;
-        }
-        let candidates = full_candidates(sample, radius).len().max(1);
-        Usage {
-            width: sample.width,
-            count,
-            fair: (state.uv.len() as f32 / candidates as f32).max(1.0),
-            strength,
+        let (width, texels) = (sample.width, sample.width * sample.height);
+        match select {
+            Select::Argmin => Usage { width, count: Vec::new(), rule: UsageRule::Argmin },
+            Select::Choosy { strength } => {
+                let mut count = vec![0u32; texels];
+                for &[x, y] in &state.uv {
+                    count[y as usize * width + x as usize] += 1;
+                }
+                let candidates = full_candidates(sample, radius).len().max(1);
+                let fair = (state.uv.len() as f32 / candidates as f32).max(1.0);
+                Usage { width, count, rule: UsageRule::FairShare { fair, strength } }
+            }
+            Select::UsePenalty { base } => {
+                Usage { width, count: vec![0; texels], rule: UsageRule::Chosen { base } }
+            }
         }
     }
 
-    /// The factor on texel `q`'s distance for a vertex now at `current`.
+    /// The least use count among `candidates`, c_min of [`Select::UsePenalty`] (0 for the
+    /// other selections). Under a full search it is the paper's minimum over the level; among
+    /// k-coherence candidates it is the least over those the vertex can take, so that the
+    /// penalty stays relative to the least-used choice at hand, not to texels no vertex
+    /// can reach.
+    pub(crate) fn floor(&self, candidates: &[u32]) -> u32 {
+        match self.rule {
+            UsageRule::Chosen { .. } => {
+                candidates.iter().filter_map(|&q| self.count.get(q as usize)).min().copied().unwrap_or(0)
+            }
+            _ => 0,
+        }
+    }
+
+    /// The factor on texel `q`'s distance for a vertex now at `current` whose candidates'
+    /// least count is `floor`.
     #[inline]
-    pub(crate) fn factor(&self, q: u32, current: [i32; 2]) -> f32 {
+    pub(crate) fn factor(&self, q: u32, current: [i32; 2], floor: u32) -> f32 {
         let Some(&n) = self.count.get(q as usize) else { return 1.0 };
-        let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
-        let excess = ((n - own) as f32 / self.fair - 1.0).max(0.0);
-        1.0 + self.strength * excess * excess
+        match self.rule {
+            UsageRule::Argmin => 1.0,
+            UsageRule::FairShare { fair, strength } => {
+                let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
+                let excess = ((n - own) as f32 / fair - 1.0).max(0.0);
+                1.0 + strength * excess * excess
+            }
+            // Beyond 2^60 no distance ratio matters; the cap keeps the power finite.
+            UsageRule::Chosen { base } => base.powi(n.saturating_sub(floor).min(60) as i32),
+        }
     }
 
+    /// A vertex at `from` took `to` (the same texel counts as a choice too).
     pub(crate) fn moved(&mut self, from: [i32; 2], to: [i32; 2]) {
-        if !self.count.is_empty() {
-            self.count[from[1] as usize * self.width + from[0] as usize] -= 1;
-            self.count[to[1] as usize * self.width + to[0] as usize] += 1;
+        let index = |[x, y]: [i32; 2]| y as usize * self.width + x as usize;
+        match self.rule {
+            UsageRule::Argmin => {}
+            UsageRule::FairShare { .. } => {
+                self.count[index(from)] -= 1;
+                self.count[index(to)] += 1;
+            }
+            UsageRule::Chosen { .. } => self.count[index(to)] += 1,
         }
     }
 }
@@ -164,5 +208,25 @@ pub(crate) mod tests {
             appearance: None,
             colour: None,
         }
+    }
+
+    /// The paper's penalty: 2^(c − c_min) by the times a texel was chosen in this pass, the
+    /// texel the vertex already holds counting like any other, c_min the least count among
+    /// the candidates at hand.
+    #[test]
+    fn the_use_penalty_doubles_per_choice_beyond_the_least_used_candidate() {
+        let sample = periodic_sample(4);
+        let state = State { labels: vec![0; 3], uv: vec![[0, 0]; 3] };
+        let mut usage = Usage::new(&sample, &state, 1, Select::UsePenalty { base: 2.0 });
+        assert_eq!(usage.factor(5, [5, 0], usage.floor(&[5, 6])), 1.0, "nothing chosen yet");
+        usage.moved([0, 0], [5, 0]);
+        usage.moved([0, 0], [5, 0]);
+        usage.moved([0, 0], [6, 0]);
+        assert_eq!(usage.floor(&[5, 6]), 1);
+        assert_eq!(usage.factor(5, [5, 0], usage.floor(&[5, 6])), 2.0, "chosen twice against once");
+        assert_eq!(usage.factor(5, [5, 0], usage.floor(&[5, 6, 7])), 4.0, "texel 7 never chosen");
+        assert_eq!(usage.factor(6, [0, 0], usage.floor(&[5, 6])), 1.0);
+        let argmin = Usage::new(&sample, &state, 1, Select::Argmin);
+        assert_eq!(argmin.factor(5, [0, 0], argmin.floor(&[5])), 1.0);
     }
 }

@@ -209,7 +209,8 @@ impl<'a> PassInputs<'a> {
         let candidates: &[u32] = self.full.as_deref().unwrap_or(coherence.out.as_slice());
         let current = state.uv[v];
         let bias = self.plan.coherence_bias;
-        matcher.choose(candidates, current, |q| selection_factor(usage, coherence, q, current, bias), draw)
+        let at = (current, usage.floor(candidates));
+        matcher.choose(candidates, current, |q| selection_factor(usage, coherence, q, at, bias), draw)
     }
 }
 

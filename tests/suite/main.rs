@@ -13,6 +13,7 @@ mod common;
 mod analysis_link;
 mod analyze;
 mod bad_inputs;
+mod choosy;
 mod cli_usage;
 mod docs;
 mod export;
