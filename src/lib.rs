@@ -33,8 +33,6 @@
 
 pub mod analysis;
 pub mod btf;
-#[cfg(feature = "cli")]
-pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod export;

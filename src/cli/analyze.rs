@@ -2,14 +2,14 @@
 
 use super::progress::Bars;
 use super::usage;
-use crate::analysis::filters::FilterBank;
-use crate::analysis::pipeline::{analyze, AnalysisParams};
-use crate::analysis::store;
-use crate::btf::image_io::is_image_path;
-use crate::btf::{load, Crop, LoadOptions};
-use crate::fsutil::{check_apart, check_not_input, commit_all, Staged};
-use crate::maps::{self, MapSource, MaterialMap};
 use anyhow::Result;
+use btfsynth::analysis::filters::FilterBank;
+use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
+use btfsynth::analysis::store;
+use btfsynth::btf::image_io::is_image_path;
+use btfsynth::btf::{load, Crop, LoadOptions};
+use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
+use btfsynth::maps::{self, MapSource, MaterialMap};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -46,7 +46,7 @@ pub struct AnalyzeArgs {
     basis: usize,
     /// Dimensions of the per-pixel appearance vectors (PCA of the filter responses) that the
     /// appearance-space synthesis metric compares, 1 to 64.
-    #[arg(long, default_value_t = crate::analysis::appearance::DEFAULT_DIMS, value_name = "N", value_parser = super::in_range(1, 64))]
+    #[arg(long, default_value_t = btfsynth::analysis::appearance::DEFAULT_DIMS, value_name = "N", value_parser = super::in_range(1, 64))]
     appearance_dims: usize,
     /// A filter bank TOML file, at most 256 filters (default: the built-in Leung–Malik 48,
     /// filters/lm48.toml).
@@ -88,7 +88,7 @@ fn check_sample_size(args: &AnalyzeArgs, params: &AnalysisParams, (w, h): (usize
         let smallest = AnalysisParams { levels: 1, neighborhood: 3, ..params.clone() };
         if smallest.validate(w, h).is_err() {
             let what = if args.crop.is_some() { "the crop" } else { "the sample" };
-            return Err(crate::Error::format(
+            return Err(btfsynth::Error::format(
                 &args.stack,
                 format!("{what} is {w}x{h} pixels, too small to analyse (the smallest neighbourhood search, 3x3, needs 7x7)"),
             )
@@ -96,7 +96,7 @@ fn check_sample_size(args: &AnalyzeArgs, params: &AnalysisParams, (w, h): (usize
         }
         return Err(usage(e));
     }
-    let sizes = crate::analysis::pyramid::level_sizes(w, h, params.levels);
+    let sizes = btfsynth::analysis::pyramid::level_sizes(w, h, params.levels);
     let (cw, ch) = sizes[sizes.len() - 1];
     if params.k > cw * ch {
         return Err(usage(format!(
@@ -128,7 +128,7 @@ fn analysis_bytes(images: usize, (w, h): (usize, usize), params: &AnalysisParams
 /// be killed for memory after minutes of work.
 fn check_memory(stack: &Path, needed: u64, budget: Option<u64>) -> Result<()> {
     match budget {
-        Some(budget) if needed > budget => Err(crate::Error::format(
+        Some(budget) if needed > budget => Err(btfsynth::Error::format(
             stack,
             format!(
                 "analysing it would take {:.1} GiB beyond the decoded images, more than the {:.1} GiB budget \
@@ -143,7 +143,7 @@ fn check_memory(stack: &Path, needed: u64, budget: Option<u64>) -> Result<()> {
 }
 
 /// The maps of `--maps`, checked against the stack and cropped like it.
-fn load_maps(args: &AnalyzeArgs, stack: &crate::btf::Btf) -> Result<Vec<MaterialMap>> {
+fn load_maps(args: &AnalyzeArgs, stack: &btfsynth::btf::Btf) -> Result<Vec<MaterialMap>> {
     let Some(MapList(sources)) = &args.maps else { return Ok(Vec::new()) };
     // Maps match the uncropped image: known for a one-image stack, else only the crop's fit
     // can be checked.
@@ -155,7 +155,7 @@ fn load_maps(args: &AnalyzeArgs, stack: &crate::btf::Btf) -> Result<Vec<Material
         Some(_) => None,
     };
     let crop = args.crop.map(|c| (c.x as usize, c.y as usize, c.width as usize, c.height as usize));
-    Ok(sources.iter().map(|s| MaterialMap::load(s, size, crop)).collect::<crate::Result<_>>()?)
+    Ok(sources.iter().map(|s| MaterialMap::load(s, size, crop)).collect::<btfsynth::Result<_>>()?)
 }
 
 pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
@@ -196,7 +196,7 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
     let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
     let maps = load_maps(&args, &stack)?;
     check_sample_size(&args, &params, (stack.width(), stack.height()))?;
-    let budget = crate::btf::source::available_memory().map(|a| a / 10 * 8);
+    let budget = btfsynth::btf::source::available_memory().map(|a| a / 10 * 8);
     check_memory(&args.stack, analysis_bytes(stack.len(), (stack.width(), stack.height()), &params), budget)?;
     let analysis = analyze(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
@@ -204,7 +204,7 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
     let mut outputs = vec![staged_output];
     if let Some(report) = staged_report {
         let text = serde_json::to_string_pretty(&store::timings_json(&analysis))?;
-        std::fs::write(report.path(), text).map_err(|e| crate::Error::io(report.target(), e))?;
+        std::fs::write(report.path(), text).map_err(|e| btfsynth::Error::io(report.target(), e))?;
         outputs.push(report);
     }
     let written = commit_all(outputs)?.remove(0);

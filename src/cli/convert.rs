@@ -1,12 +1,12 @@
 //! `btfsynth convert`: any readable stack to a folder stack or a DFMF `.btf` file.
 
 use super::progress::Bars;
-use crate::btf::colour::ColourModel;
-use crate::btf::convert::{open_stack, rotations_of, to_btf, ToBtfOptions};
-use crate::btf::ubo2014::Scalar;
-use crate::btf::{write_images, Crop, ImageFormat};
-use crate::fsutil::{check_not_input, Staged};
 use anyhow::Result;
+use btfsynth::btf::colour::ColourModel;
+use btfsynth::btf::convert::{open_stack, rotations_of, to_btf, ToBtfOptions};
+use btfsynth::btf::ubo2014::Scalar;
+use btfsynth::btf::{write_images, Crop, ImageFormat};
+use btfsynth::fsutil::{check_not_input, Staged};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -162,12 +162,12 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
 
 /// A DFMF file holds every view under every light: refuses a stack that lacks a pair
 /// before anything is decoded.
-fn check_complete(input: &Path, pairs: &[crate::btf::DirectionPair]) -> Result<()> {
-    use crate::btf::directions::distinct;
+fn check_complete(input: &Path, pairs: &[btfsynth::btf::DirectionPair]) -> Result<()> {
+    use btfsynth::btf::directions::distinct;
     let views = distinct(pairs.iter().map(|p| p.view)).len();
     let lights = distinct(pairs.iter().map(|p| p.light)).len();
     if views * lights != pairs.len() {
-        return Err(crate::Error::format(
+        return Err(btfsynth::Error::format(
             input,
             format!(
                 "a DFMF file needs every view × light pair: this stack has {} images, but its {views} views \

@@ -1,19 +1,19 @@
 //! `btfsynth demo`: the pipeline on bundled defaults, into demo-out/ (staged whole).
 
 use super::progress::Bars;
-use crate::analysis::pipeline::{analyze, AnalysisParams};
-use crate::analysis::store;
-use crate::btf::gen::{generate, GenParams, MaterialKind};
-use crate::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptions};
-use crate::fsutil::StagedDir;
-use crate::mesh::field::Orientation;
-use crate::render::cpu::{render_sequence, RenderOptions};
-use crate::render::scene::open_surface;
-use crate::render::{FrameFormat, Material, Orbit, SequenceWriter, ShotPlan};
-use crate::synth::plane::{synthesize_plane, write_plane};
-use crate::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
-use crate::synth::{Sample, Search, SynthParams};
 use anyhow::Result;
+use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
+use btfsynth::analysis::store;
+use btfsynth::btf::gen::{generate, GenParams, MaterialKind};
+use btfsynth::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptions};
+use btfsynth::fsutil::StagedDir;
+use btfsynth::mesh::field::Orientation;
+use btfsynth::render::cpu::{render_sequence, RenderOptions};
+use btfsynth::render::scene::open_surface;
+use btfsynth::render::{FrameFormat, Material, Orbit, SequenceWriter, ShotPlan};
+use btfsynth::synth::plane::{synthesize_plane, write_plane};
+use btfsynth::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
+use btfsynth::synth::{Sample, Search, SynthParams};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -51,20 +51,20 @@ fn check_demo_target(dir: &Path, force: bool) -> Result<()> {
         return Ok(());
     }
     if !dir.is_dir() {
-        return Err(crate::Error::invalid(format!(
+        return Err(btfsynth::Error::invalid(format!(
             "{} already exists and is not a directory (pass --force to replace it)",
             dir.display()
         ))
         .into());
     }
-    let entries = std::fs::read_dir(dir).map_err(|e| crate::Error::io(dir, e))?;
+    let entries = std::fs::read_dir(dir).map_err(|e| btfsynth::Error::io(dir, e))?;
     let foreign: Vec<String> = entries
         .filter_map(|e| e.ok())
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .filter(|name| !DEMO_ENTRIES.contains(&name.as_str()))
         .collect();
     if let Some(first) = foreign.first() {
-        return Err(crate::Error::invalid(format!(
+        return Err(btfsynth::Error::invalid(format!(
             "{} holds files the demo does not write ({first}{}); pass --force to replace it",
             dir.display(),
             if foreign.len() > 1 { format!(" and {} more", foreign.len() - 1) } else { String::new() }
@@ -77,7 +77,7 @@ fn check_demo_target(dir: &Path, force: bool) -> Result<()> {
 pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     let data = data_dir(args.data.clone());
     check_demo_target(&args.output, args.force)?;
-    crate::fsutil::check_not_input("-o", &args.output, &[&data])?;
+    btfsynth::fsutil::check_not_input("-o", &args.output, &[&data])?;
     // Everything is built in one staged directory, so an interrupted or failed demo leaves
     // nothing and an earlier demo's outputs stay until the new ones are complete.
     let staged = StagedDir::new(&args.output, true)?;
@@ -201,20 +201,20 @@ impl Relocation {
 
     /// A JSON file rewritten in place (inside the staging directory, before the commit).
     fn json_file(&self, path: &Path) -> Result<()> {
-        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+        let text = std::fs::read_to_string(path).map_err(|e| btfsynth::Error::io(path, e))?;
         let mut v: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| crate::Error::format(path, e.to_string()))?;
+            serde_json::from_str(&text).map_err(|e| btfsynth::Error::format(path, e.to_string()))?;
         self.value(&mut v);
-        crate::fsutil::write_file_atomic(path, self.json_text(v)?.as_bytes())?;
+        btfsynth::fsutil::write_file_atomic(path, self.json_text(v)?.as_bytes())?;
         Ok(())
     }
 
     /// A PLY's header comments rewritten in place (the body is kept byte for byte).
     fn ply_header(&self, path: &Path) -> Result<()> {
-        let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| btfsynth::Error::io(path, e))?;
         let marker = b"end_header\n";
         let Some(end) = bytes.windows(marker.len()).position(|w| w == marker) else {
-            return Err(crate::Error::format(path, "no end_header").into());
+            return Err(btfsynth::Error::format(path, "no end_header").into());
         };
         let header = String::from_utf8_lossy(&bytes[..end]);
         let lines: Vec<String> = header
@@ -233,7 +233,7 @@ impl Relocation {
         let mut rewritten = lines.join("\n").into_bytes();
         rewritten.push(b'\n');
         rewritten.extend_from_slice(&bytes[end..]);
-        crate::fsutil::write_file_atomic(path, &rewritten)?;
+        btfsynth::fsutil::write_file_atomic(path, &rewritten)?;
         Ok(())
     }
 }
@@ -249,7 +249,7 @@ fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
     // The sky lights what the orbiting sun leaves in shadow (`render --env sky`).
-    let sky = crate::render::Environment::sky();
+    let sky = btfsynth::render::Environment::sky();
     render_sequence(
         (&scene, &material),
         &plan,
@@ -267,7 +267,7 @@ fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
 fn surface_map(analysis_dir: &Path, mesh: &Path, output: &Path, bars: &Bars) -> Result<()> {
     let sample = Sample::open(analysis_dir, 3)?;
     let params = SynthParams::default();
-    let input = crate::mesh::load(mesh)?;
+    let input = btfsynth::mesh::load(mesh)?;
     let pyramid = build_pyramid(&input, Density::Vertices(20_000), 3, &Orientation::Smooth, &params, bars)?;
     let (state, _) = synthesize_surface(&pyramid, &sample, &params, bars)?;
     let params_json = serde_json::json!({"preset": params.preset.name, "k": 11, "levels": 3, "neighborhood": params.neighborhood, "orient": "smooth", "seed": params.seed});
@@ -284,7 +284,7 @@ fn analyse_and_synthesize(
     analysis_dir: &Path,
     plane_dir: &Path,
     bars: &Bars,
-) -> Result<crate::analysis::store::Manifest> {
+) -> Result<btfsynth::analysis::store::Manifest> {
     let analysis = analyze(stack, &params, bars)?;
     store::write(&analysis, stack, source, None, analysis_dir, true)?;
     let manifest = store::read_manifest(analysis_dir)?;

@@ -2,11 +2,11 @@
 
 use super::progress::Bars;
 use super::shots::with_force_hint;
-use crate::analysis::store::verify_fingerprint;
-use crate::eval::report::{evaluate_picture, evaluate_plane, evaluate_surface, Evaluation};
-use crate::synth::plane::MANIFEST;
-use crate::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use anyhow::{bail, Result};
+use btfsynth::analysis::store::verify_fingerprint;
+use btfsynth::eval::report::{evaluate_picture, evaluate_plane, evaluate_surface, Evaluation};
+use btfsynth::synth::plane::MANIFEST;
+use btfsynth::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

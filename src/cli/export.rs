@@ -2,9 +2,9 @@
 
 use super::progress::Bars;
 use super::shots::parse_angles;
-use crate::btf::Direction;
-use crate::export::{export, CoordinateFormat, ExportOptions, UvChoice, SIZE_RANGE};
 use anyhow::Result;
+use btfsynth::btf::Direction;
+use btfsynth::export::{export, CoordinateFormat, ExportOptions, UvChoice, SIZE_RANGE};
 use std::path::PathBuf;
 
 /// How the sample-coordinate map is stored.
@@ -87,7 +87,7 @@ pub fn run(args: ExportArgs, bars: &Bars) -> Result<()> {
             .into_iter()
             .flatten()
             .collect();
-    crate::fsutil::check_not_input("-o", &args.output, &inputs)?;
+    btfsynth::fsutil::check_not_input("-o", &args.output, &inputs)?;
     let options = ExportOptions {
         mesh: args.mesh,
         analysis: args.analysis,

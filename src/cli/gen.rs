@@ -2,10 +2,10 @@
 
 use super::progress::Bars;
 use super::usage;
-use crate::btf::gen::{generate, GenParams, MaterialKind};
-use crate::btf::{write_stack, DirectionSet, ImageFormat};
-use crate::fsutil::check_dir_target;
 use anyhow::Result;
+use btfsynth::btf::gen::{generate, GenParams, MaterialKind};
+use btfsynth::btf::{write_stack, DirectionSet, ImageFormat};
+use btfsynth::fsutil::check_dir_target;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -46,7 +46,7 @@ pub struct GenArgs {
 }
 
 fn parse_directions(s: &str) -> Result<DirectionSet, String> {
-    s.parse().map_err(|e: crate::Error| e.to_string())
+    s.parse().map_err(|e: btfsynth::Error| e.to_string())
 }
 
 pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {

@@ -1,9 +1,9 @@
 //! `btfsynth info`: say what a path is.
 
 use super::progress::Bars;
-use crate::analysis::store::{self, Manifest};
-use crate::btf::{load, Btf, Crop, Direction, LoadOptions};
 use anyhow::Result;
+use btfsynth::analysis::store::{self, Manifest};
+use btfsynth::btf::{load, Btf, Crop, Direction, LoadOptions};
 use std::path::{Path, PathBuf};
 
 /// `writeln!` into a `String` (which cannot fail).
@@ -53,8 +53,8 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
         }
         return Ok(());
     }
-    if crate::btf::ubo2014::is_bonn_file(&args.path) && args.crop.is_none() {
-        let file = crate::btf::ubo2014::BonnBtf::open(&args.path)?;
+    if btfsynth::btf::ubo2014::is_bonn_file(&args.path) && args.crop.is_none() {
+        let file = btfsynth::btf::ubo2014::BonnBtf::open(&args.path)?;
         if args.json {
             super::print(file.describe())?;
         } else {
@@ -63,8 +63,8 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
         return Ok(());
     }
     if is_mesh_path(&args.path) {
-        let mesh = crate::mesh::load(&args.path)?;
-        let summary = crate::mesh::topology::summary(&mesh);
+        let mesh = btfsynth::mesh::load(&args.path)?;
+        let summary = btfsynth::mesh::topology::summary(&mesh);
         if args.json {
             super::print(serde_json::json!({
                 "kind": "mesh", "path": args.path.display().to_string(), "vertices": summary.vertices,
@@ -128,7 +128,7 @@ fn describe_stack(path: &Path, stack: &Btf) -> String {
 }
 
 /// A Bonn `.btf` file from its header alone (nothing is decoded).
-fn describe_bonn_file(file: &crate::btf::ubo2014::BonnBtf) -> String {
+fn describe_bonn_file(file: &btfsynth::btf::ubo2014::BonnBtf) -> String {
     let mut out = String::new();
     let d = file.describe();
     let (views, lights) = file.views_and_lights();
@@ -258,7 +258,7 @@ fn surface_header(path: &Path) -> Result<Option<serde_json::Value>> {
     if !path.is_file() || !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
         return Ok(None);
     }
-    let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| btfsynth::Error::io(path, e))?;
     let end = bytes.windows(10).position(|w| w == b"end_header").unwrap_or(bytes.len().min(4096));
     let header = String::from_utf8_lossy(&bytes[..end]);
     if !header.lines().any(|l| l.trim() == "comment btfsynth surface") {

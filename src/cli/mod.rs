@@ -107,7 +107,7 @@ pub fn main() -> ExitCode {
         // ripgrep and the other line tools do.
         Err(e) if is_closed_stdout(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", crate::fsutil::without_temporary_names(&one_line(&e)));
+            eprintln!("error: {}", btfsynth::fsutil::without_temporary_names(&one_line(&e)));
             if e.downcast_ref::<UsageError>().is_some() {
                 ExitCode::from(2)
             } else {
@@ -207,7 +207,7 @@ pub(crate) fn odd_side(s: &str) -> Result<usize, String> {
 /// already complete (commits come last, so that is rare and only ever whole outputs).
 fn clean_up_when_interrupted() {
     let installed = ctrlc::set_handler(|| {
-        let committed = crate::fsutil::remove_staged();
+        let committed = btfsynth::fsutil::remove_staged();
         // On a terminal the line starts after the echoed ^C.
         let start = if std::io::IsTerminal::is_terminal(&std::io::stderr()) { "\n" } else { "" };
         eprintln!("{start}{}", interrupted_message(&committed));

@@ -1,6 +1,6 @@
 //! indicatif progress bars behind the library's `Progress` trait.
 
-use crate::progress::Progress;
+use btfsynth::progress::Progress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::sync::Mutex;
 

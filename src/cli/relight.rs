@@ -2,11 +2,11 @@
 
 use super::progress::Bars;
 use super::shots::LightingArgs;
-use crate::btf::Direction;
-use crate::render::ambient::AmbientLight;
-use crate::render::relight::relight;
-use crate::render::{FrameFormat, Material};
 use anyhow::Result;
+use btfsynth::btf::Direction;
+use btfsynth::render::ambient::AmbientLight;
+use btfsynth::render::relight::relight;
+use btfsynth::render::{FrameFormat, Material};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -66,8 +66,8 @@ pub fn run(args: RelightArgs, bars: &Bars) -> Result<()> {
     };
     let env_file = args.lighting.env_file();
     let inputs: Vec<&Path> = [Some(args.input.as_path()), env_file].into_iter().flatten().collect();
-    crate::fsutil::check_not_input("-o", &args.output, &inputs)?;
-    let staged = crate::fsutil::Staged::file(&args.output, args.force)?;
+    btfsynth::fsutil::check_not_input("-o", &args.output, &inputs)?;
+    let staged = btfsynth::fsutil::Staged::file(&args.output, args.force)?;
     let material = Material::open_any(&args.input, bars)?;
     let view = Direction::new(args.view.0, args.view.1)?.unit();
     let light = match sun_direction {

@@ -1,10 +1,10 @@
 //! `btfsynth remesh`: isotropic remeshing of a triangle mesh.
 
 use super::progress::Bars;
-use crate::fsutil::{check_not_input, Staged};
-use crate::mesh::remesh::{edge_length_stats, remesh, RemeshParams};
-use crate::mesh::{self, ply, topology};
 use anyhow::Result;
+use btfsynth::fsutil::{check_not_input, Staged};
+use btfsynth::mesh::remesh::{edge_length_stats, remesh, RemeshParams};
+use btfsynth::mesh::{self, ply, topology};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -62,7 +62,7 @@ pub fn run(args: RemeshArgs, bars: &Bars) -> Result<()> {
     eprintln!("input   {}", topology::summary(&input));
     let started = Instant::now();
     let output = remesh(&input, &params, bars).map_err(|e| match e {
-        crate::Error::InvalidArgument(m) => anyhow::Error::from(crate::Error::format(&args.mesh, m)),
+        btfsynth::Error::InvalidArgument(m) => anyhow::Error::from(btfsynth::Error::format(&args.mesh, m)),
         other => other.into(),
     })?;
     let comment = format!("remeshed by btfsynth {} from {}", env!("CARGO_PKG_VERSION"), args.mesh.display());

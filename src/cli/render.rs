@@ -2,9 +2,9 @@
 
 use super::progress::Bars;
 use super::shots::{LightingArgs, OutputArgs, ShotArgs};
-use crate::render::cpu::{render_sequence, valid_spp, RenderOptions};
-use crate::render::{Material, SequenceWriter};
 use anyhow::Result;
+use btfsynth::render::cpu::{render_sequence, valid_spp, RenderOptions};
+use btfsynth::render::{Material, SequenceWriter};
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -1,8 +1,8 @@
 //! Options that `render` and `view` share: which surface, which shots, which shading.
 
-use crate::render::scene::{open_surface, Scene};
-use crate::render::{Environment, FrameFormat, Mode, Orbit, ShotPlan};
 use anyhow::Result;
+use btfsynth::render::scene::{open_surface, Scene};
+use btfsynth::render::{Environment, FrameFormat, Mode, Orbit, ShotPlan};
 use glam::Vec3;
 use std::path::PathBuf;
 
@@ -151,7 +151,7 @@ impl ShotArgs {
                 .into_iter()
                 .flatten()
                 .collect();
-        Ok(crate::fsutil::check_not_input("-o", output, &inputs)?)
+        Ok(btfsynth::fsutil::check_not_input("-o", output, &inputs)?)
     }
 
     /// The `--mode` value as typed.
@@ -184,9 +184,9 @@ pub fn parse_angles(s: &str) -> Result<(f32, f32), String> {
 }
 
 /// A mismatched analysis, with the way to use it anyway.
-pub fn with_force_hint(e: crate::Error) -> anyhow::Error {
+pub fn with_force_hint(e: btfsynth::Error) -> anyhow::Error {
     match e {
-        crate::Error::AnalysisMismatch { .. } => {
+        btfsynth::Error::AnalysisMismatch { .. } => {
             anyhow::anyhow!("{e}; pass --force-analysis to use it anyway")
         }
         other => other.into(),

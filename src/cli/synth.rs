@@ -2,15 +2,15 @@
 
 use super::progress::Bars;
 use super::usage;
-use crate::fsutil::{check_apart, check_not_input, commit_all, Staged};
-use crate::mesh::field::Orientation;
-use crate::synth::plane::{synthesize_plane, write_plane};
-use crate::synth::round::{MarchingCache, MarchingOrigin};
-use crate::synth::surface_map::{
+use anyhow::{Context, Result};
+use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
+use btfsynth::mesh::field::Orientation;
+use btfsynth::synth::plane::{synthesize_plane, write_plane};
+use btfsynth::synth::round::{MarchingCache, MarchingOrigin};
+use btfsynth::synth::surface_map::{
     build_pyramid_cached, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
 };
-use crate::synth::{LevelReport, MetricKind, Preset, Sample, Search, SynthParams};
-use anyhow::{Context, Result};
+use btfsynth::synth::{LevelReport, MetricKind, Preset, Sample, Search, SynthParams};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -177,12 +177,12 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     };
     let orientation = match &args.mesh {
         Some(_) => Some(Orientation::parse(&args.orient).map_err(|e| match e {
-            crate::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
+            btfsynth::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
             other => other.into(),
         })?),
         None => None,
     };
-    let manifest = crate::analysis::store::read_manifest(&analysis)?;
+    let manifest = btfsynth::analysis::store::read_manifest(&analysis)?;
     let levels = args.levels.unwrap_or(manifest.levels.len());
     if levels > manifest.levels.len() {
         return Err(usage(format!("--levels {levels}: the analysis has {} level(s)", manifest.levels.len())));
@@ -195,7 +195,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
     }
     check_neighbourhood(args.neighborhood, &manifest, levels)?;
-    crate::analysis::store::verify_levels(&analysis, &manifest, levels)?;
+    btfsynth::analysis::store::verify_levels(&analysis, &manifest, levels)?;
     let mut sample = Sample::open(&analysis, levels)?;
     let search = match args.search {
         SearchKind::Kcoherence => Search::KCoherence { k },
@@ -256,7 +256,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if let Some(report) = staged_report {
         let json = serde_json::json!({"params": params_json, "levels": reports});
         std::fs::write(report.path(), serde_json::to_string_pretty(&json)?)
-            .map_err(|e| crate::Error::io(report.target(), e))?;
+            .map_err(|e| btfsynth::Error::io(report.target(), e))?;
         outputs.push(report);
     }
     let committed = commit_all(outputs)?;
@@ -269,7 +269,11 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
 
 /// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there
 /// would have a whole neighbourhood to copy.
-fn check_neighbourhood(n: usize, manifest: &crate::analysis::store::Manifest, levels: usize) -> Result<()> {
+fn check_neighbourhood(
+    n: usize,
+    manifest: &btfsynth::analysis::store::Manifest,
+    levels: usize,
+) -> Result<()> {
     let Some(coarsest) = manifest.levels.get(levels.max(1) - 1) else { return Ok(()) };
     let side = coarsest.width.min(coarsest.height);
     if n > side {
@@ -287,13 +291,13 @@ fn check_neighbourhood(n: usize, manifest: &crate::analysis::store::Manifest, le
 
 /// The recipe in `file` (see `--recipe`), checked; any problem is a usage error naming the file.
 fn read_recipe(file: &Path) -> Result<Preset> {
-    let text = crate::fsutil::read_input_text(file)
+    let text = btfsynth::fsutil::read_input_text(file)
         .map_err(|e| usage(format!("--recipe {}: cannot read it: {e}", file.display())))?;
     Preset::from_json(&text).map_err(|e| usage(format!("--recipe {}: {e}", file.display())))
 }
 
 /// The view/light pairs asked for with --view/--light (empty: the defaults).
-fn shown_probes(args: &SynthArgs, analysis: &Path) -> Result<Vec<crate::analysis::images::Probe>> {
+fn shown_probes(args: &SynthArgs, analysis: &Path) -> Result<Vec<btfsynth::analysis::images::Probe>> {
     if args.views.is_empty() && args.lights.is_empty() {
         return Ok(Vec::new());
     }
@@ -301,7 +305,7 @@ fn shown_probes(args: &SynthArgs, analysis: &Path) -> Result<Vec<crate::analysis
     let lights = if args.lights.is_empty() { vec![(0.0, 0.0)] } else { args.lights.clone() };
     let pairs: Vec<([f32; 2], [f32; 2])> =
         views.iter().flat_map(|&(vt, vp)| lights.iter().map(move |&(lt, lp)| ([vt, vp], [lt, lp]))).collect();
-    Ok(crate::analysis::images::SampleImages::open(analysis)?.probes_for(&pairs))
+    Ok(btfsynth::analysis::images::SampleImages::open(analysis)?.probes_for(&pairs))
 }
 
 fn density(args: &SynthArgs, sample_width: usize) -> Density {
@@ -327,7 +331,7 @@ fn surface(
     params_json: &mut serde_json::Value,
     bars: &Bars,
 ) -> Result<(Vec<LevelReport>, usize)> {
-    let mesh = crate::mesh::load(mesh_path)?;
+    let mesh = btfsynth::mesh::load(mesh_path)?;
     if !matches!(density, Density::Vertices(_)) {
         let texel = density.texel(&mesh).map_err(usage)?;
         let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * f64::from(texel).powi(2));

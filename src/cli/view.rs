@@ -2,10 +2,10 @@
 
 use super::progress::Bars;
 use super::shots::{LightingArgs, OutputArgs, ShotArgs};
-use crate::progress::Progress;
-use crate::render::gpu::{Display, GpuLighting, GpuRenderer};
-use crate::render::{viewer, Material, SequenceWriter};
 use anyhow::Result;
+use btfsynth::progress::Progress;
+use btfsynth::render::gpu::{Display, GpuLighting, GpuRenderer};
+use btfsynth::render::{viewer, Material, SequenceWriter};
 use std::path::PathBuf;
 use std::time::Instant;
 
