@@ -3,10 +3,10 @@
 use super::progress::Bars;
 use super::usage;
 use crate::analysis::filters::FilterBank;
-use crate::analysis::pipeline::{analyze, AnalysisParams};
-use crate::analysis::store;
+use crate::analysis::pipeline::AnalysisParams;
+use crate::analysis::{input, store};
 use crate::btf::image_io::is_image_path;
-use crate::btf::{load, Crop, LoadOptions};
+use crate::btf::Crop;
 use crate::fsutil::check_target;
 use crate::maps::{self, MapSource, MaterialMap};
 use anyhow::Result;
@@ -55,6 +55,11 @@ pub struct AnalyzeArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Analyse decoded images even where the stack is a factorized .btf file or too large
+    /// to decode (then refused): by default a DFMF/FMF file is analysed from its factors and
+    /// a stack too large to decode through a streamed basis.
+    #[arg(long)]
+    decoded: bool,
     /// Material maps of the same patch, stored beside the sample at their own depth (8-bit,
     /// 16-bit PNG or float EXR) and carried through synthesis: KIND=FILE pairs separated by
     /// commas; kinds: normal, roughness, metallic, occlusion, height.
@@ -74,12 +79,12 @@ fn parse_maps(s: &str) -> Result<MapList, String> {
 }
 
 /// The maps of `--maps`, checked against the stack and cropped like it.
-fn load_maps(args: &AnalyzeArgs, stack: &crate::btf::Btf) -> Result<Vec<MaterialMap>> {
+fn load_maps(args: &AnalyzeArgs, (width, height): (usize, usize)) -> Result<Vec<MaterialMap>> {
     let Some(MapList(sources)) = &args.maps else { return Ok(Vec::new()) };
     // Maps match the uncropped image: known for a one-image stack, else only the crop's fit
     // can be checked.
     let size = match args.crop {
-        None => Some((stack.width(), stack.height())),
+        None => Some((width, height)),
         Some(_) if is_image_path(&args.stack) => {
             image::image_dimensions(&args.stack).ok().map(|(w, h)| (w as usize, h as usize))
         }
@@ -107,13 +112,16 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         seed: args.seed,
         filters,
     };
-    let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
-    let maps = load_maps(&args, &stack)?;
-    params.validate(stack.width(), stack.height()).map_err(usage)?;
-    let analysis = analyze(&stack, &params, bars)?;
+    let mode = if args.decoded { input::Mode::Decoded } else { input::Mode::Auto };
+    let stack = input::open(&args.stack, args.crop, mode, &params, bars)?;
+    let (width, height) = stack.size();
+    let maps = load_maps(&args, (width, height))?;
+    params.validate(width, height).map_err(usage)?;
+    let analysed = input::run(&stack, &params, bars)?;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
     let written =
-        store::write_with_maps(&analysis, &stack, (&args.stack, crop), &maps, &args.output, args.force)?;
+        store::write_analysed(&analysed, &stack, (&args.stack, crop), &maps, &args.output, args.force)?;
+    let analysis = &analysed.analysis;
     let t = &analysis.timings;
     let sizes: Vec<String> = analysis
         .levels
@@ -129,9 +137,10 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         })
         .collect();
     eprintln!(
-        "analysed {} images ({} selected) into {}",
+        "analysed {} images ({} selected, from {}) into {}",
         stack.len(),
         analysis.selected.len(),
+        input::describe(&stack),
         written.display()
     );
     eprintln!("  levels    {}", sizes.join("; "));

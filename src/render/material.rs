@@ -4,6 +4,7 @@
 
 use super::blend::{DirectionIndex, Nearest4};
 use crate::analysis::{npy, store};
+use crate::btf::factored::FactoredStack;
 use crate::btf::{directions, Direction, DirectionPair};
 use crate::{Error, Result};
 use glam::Vec3;
@@ -31,11 +32,16 @@ impl Blend16 {
 /// The pixels are kept texel-major: all images' values at one texel side by side. A blend
 /// reads its 16 images at the same texel (or the same four bilinear taps), so its reads fall
 /// in one small block instead of 16 image planes a fixed stride apart, which thrash the cache.
+///
+/// A sample stored as factors (an analysis of a factorized `.btf` or of a streamed basis,
+/// see `analysis::input`) is decoded into that layout when it is small
+/// ([`DECODE_LIMIT`]); a larger one keeps its factors and computes each value it is asked
+/// for (a K-term product per channel, then the colour model), with the same offsets.
 pub struct Material {
     width: usize,
     height: usize,
-    /// `[height][width][n][3]` linear RGB.
-    pixels: Vec<f32>,
+    /// `[height][width][n][3]` linear RGB, or the factors that compute them.
+    pixels: Texels,
     pairs: Vec<DirectionPair>,
     views: DirectionIndex,
     lights: DirectionIndex,
@@ -43,6 +49,20 @@ pub struct Material {
     image_of: Vec<Option<u32>>,
     /// Lookups wrap around the edges (the sample tiles) rather than clamp.
     pub tileable: bool,
+}
+
+/// Factored samples whose texel-major f32 values take at most this many bytes are
+/// decoded when opened: a lookup is then one read instead of a K-term product. Above it
+/// (e.g. 64×64 texels × 22,801 images, 1.1 GiB) the factors stay and values are computed
+/// on the fly; for such a sample a render reads fewer values than decoding computes.
+pub const DECODE_LIMIT: u64 = 256 << 20;
+
+/// The material's values.
+enum Texels {
+    /// `[height][width][n][3]` linear RGB.
+    Decoded(Vec<f32>),
+    /// The factors; value offsets as in `Decoded`.
+    Factors(Box<FactoredStack>),
 }
 
 impl Material {
@@ -71,6 +91,11 @@ impl Material {
             .flat_map_iter(|t| (0..n).flat_map(move |i| (0..3).map(move |c| (i, t, c))))
             .map(|(i, t, c)| value(i * plane + t * 3 + c))
             .collect();
+        Material::with_texels(width, height, pairs, Texels::Decoded(pixels))
+    }
+
+    /// A material of these values: the direction indices and the pair table.
+    fn with_texels(width: usize, height: usize, pairs: Vec<DirectionPair>, pixels: Texels) -> Result<Material> {
         let views = directions::distinct(pairs.iter().map(|p| p.view));
         let lights = directions::distinct(pairs.iter().map(|p| p.light));
         let mut image_of = vec![None; views.len() * lights.len()];
@@ -96,6 +121,11 @@ impl Material {
     /// it was analysed as tileable).
     pub fn open(analysis_dir: &Path) -> Result<Material> {
         let manifest = store::read_manifest(analysis_dir)?;
+        if manifest.sample.is_some() && !analysis_dir.join("images.npy").exists() {
+            let mut material = Material::from_factors(store::read_factors(analysis_dir, &manifest)?)?;
+            material.tileable = manifest.params.tileable;
+            return Ok(material);
+        }
         let images: npy::NpyArray<f16> = npy::read(&analysis_dir.join("images.npy"))?;
         let dirs: npy::NpyArray<f32> = npy::read(&analysis_dir.join("directions.npy"))?;
         let [n, h, w, 3] = images.shape[..] else {
@@ -124,6 +154,38 @@ impl Material {
         let mut material = Material::from_image_major(w, h, pairs, |i| images.data[i].to_f32())?;
         material.tileable = manifest.params.tileable;
         Ok(material)
+    }
+
+    /// The material of a factored sample: decoded texel-major when that takes at most
+    /// [`DECODE_LIMIT`] bytes, else the factors themselves (see [`Material`]).
+    pub fn from_factors(f: FactoredStack) -> Result<Material> {
+        let (w, h, n) = (f.width(), f.height(), f.len());
+        let decoded_bytes = (w * h * n * 3 * 4) as u64;
+        if decoded_bytes > DECODE_LIMIT {
+            let pairs = f.pairs().to_vec();
+            return Material::with_texels(w, h, pairs, Texels::Factors(Box::new(f)));
+        }
+        // A block of texels at a time: one product per channel gives every image's values.
+        const BLOCK: usize = 256;
+        let texels = w * h;
+        let mut pixels = vec![0f32; texels * n * 3];
+        pixels.par_chunks_mut(BLOCK * n * 3).enumerate().for_each(|(b, out)| {
+            let range = b * BLOCK..b * BLOCK + out.len() / (n * 3);
+            let values: Vec<ndarray::Array2<f32>> = (0..3)
+                .map(|c| f.texel[c].slice(ndarray::s![range.clone(), ..]).dot(&f.image[c].t()))
+                .collect();
+            for (k, px) in out.chunks_exact_mut(3).enumerate() {
+                let (t, i) = (k / n, k % n);
+                let v = [values[0][[t, i]], values[1][[t, i]], values[2][[t, i]]];
+                px.copy_from_slice(&crate::btf::factored::decode_channels(f.model, f.log_encoded, f.scale[i], v));
+            }
+        });
+        Material::with_texels(w, h, f.pairs().to_vec(), Texels::Decoded(pixels))
+    }
+
+    /// Whether values are computed from factors on the fly (see [`Material`]).
+    pub fn is_factored(&self) -> bool {
+        matches!(self.pixels, Texels::Factors(_))
     }
 
     /// The material of a BTF stack as loaded (not tileable).
@@ -170,10 +232,7 @@ impl Material {
     pub fn image(&self, image: u32) -> Vec<f32> {
         let n = self.pairs.len();
         (0..self.width * self.height)
-            .flat_map(|t| {
-                let o = (t * n + image as usize) * 3;
-                [self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]]
-            })
+            .flat_map(|t| self.at((t * n + image as usize) * 3).to_array())
             .collect()
     }
 
@@ -239,8 +298,15 @@ impl Material {
     }
 
     /// The RGB at value offset `o` of the texel-major pixels (a texel block plus 3 × image).
+    #[inline]
     pub fn at(&self, o: usize) -> Vec3 {
-        Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
+        match &self.pixels {
+            Texels::Decoded(p) => Vec3::new(p[o], p[o + 1], p[o + 2]),
+            Texels::Factors(f) => {
+                let per_texel = self.pairs.len() * 3;
+                Vec3::from_array(f.rgb(o % per_texel / 3, o / per_texel))
+            }
+        }
     }
 
     /// The 16 images of a view and a light selection; `cos_light` is the light's n·l,

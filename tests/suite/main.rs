@@ -15,6 +15,7 @@ mod analyze;
 mod bad_inputs;
 mod cli_usage;
 mod export;
+mod factor_analysis;
 mod gen;
 mod interrupt;
 mod loaders;
