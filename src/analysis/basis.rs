@@ -139,8 +139,29 @@ impl LowRankStack {
     }
 
     /// Applies a linear map of images (e.g. a pyramid's downsampling) to the stack: to
-    /// the offset and to every row, in parallel; the coordinates stay.
+    /// the offset and to every row, in parallel; the coordinates stay. The energy outside
+    /// the rows' span cannot be mapped without the images: it is scaled by the ratio the
+    /// centred energy inside the span changed by (an estimate; exact stacks have none).
     pub fn map_rows(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
+        let before = if self.outside > 0.0 { self.inside_energy() } else { 0.0 };
+        let mut mapped = self.map_rows_only(f);
+        if mapped.outside > 0.0 {
+            let after = mapped.inside_energy();
+            mapped.outside *= if before > 0.0 { after / before } else { 0.0 };
+        }
+        mapped
+    }
+
+    /// Σₐ ‖(coords[a] − mean coords) · rows‖², the centred energy the stack represents.
+    fn inside_energy(&self) -> f64 {
+        let coords = self.coords.mapv(|v| v as f64);
+        let cbar = coords.mean_axis(Axis(0)).unwrap_or_else(|| Array1::zeros(coords.ncols()));
+        let centred = &coords - &cbar;
+        let g = gram_f64(self.rows.view());
+        (centred.dot(&g) * &centred).sum()
+    }
+
+    fn map_rows_only(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
         use rayon::prelude::*;
         let mapped: Vec<Vec<f32>> = (0..self.rows.nrows())
             .into_par_iter()

@@ -66,13 +66,18 @@ fn level_stage(texels: u64, rank: u64, params: &AnalysisParams, held: u64, image
     let threads = rayon::current_num_threads() as u64;
     let blocks = rank + 1;
     let features = texels * blocks * 3 * filters * 4;
+    // A reduced level also holds its sketch, its orthonormal basis and its coordinates.
+    let reduction = match features / 4 > super::reduce::REDUCE_ABOVE as u64 {
+        true => 3 * texels * super::reduce::PROJECTED_DIMS as u64 * 4,
+        false => 0,
+    };
     let responses = threads.min(blocks) * 3 * filters * texels * 4;
     let components = blocks * texels * 3 * 4;
     let dims = params.appearance_dims as u64;
     let side = super::appearance::NEIGHBOURHOOD as u64;
     let appearance = texels * (blocks * 3 * 4 * 2 + side * side * dims * 4 * 2);
     // The images (or the low-rank rows) this level reads, the basis and its centred copy.
-    held + images + components + features + responses.max(appearance)
+    held + images + components + features + responses.max(appearance).max(reduction)
 }
 
 /// Stages of [`super::pipeline::analyze`] on `images` decoded images of `width × height`.

@@ -17,8 +17,8 @@
 use crate::seeded::normal;
 use ndarray::{Array1, Array2, ArrayView2, Axis};
 
-/// Feature matrices with more values than this (1 GiB of f32) are reduced first.
-pub const REDUCE_ABOVE: usize = 1 << 28;
+/// Feature matrices with more values than this (256 MiB of f32) are reduced first.
+pub const REDUCE_ABOVE: usize = 1 << 26;
 /// Columns of the sketch.
 pub const PROJECTED_DIMS: usize = 384;
 /// Share of the sketch's energy the kept dimensions hold.
