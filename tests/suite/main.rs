@@ -25,6 +25,7 @@ mod presets;
 mod quality;
 mod recipes;
 mod render;
+mod repetition;
 mod surface;
 mod synth;
 mod tileable;
