@@ -9,21 +9,27 @@
 # Prints a Markdown table (wall time, peak resident memory) and writes everything under
 # OUT (default bench-out/big-btf). Needs python3 with numpy, and GNU time at /usr/bin/time.
 # Not part of CI: the file takes minutes to build and the no-crop analysis minutes to run.
-#   benches/big_btf.sh [--out DIR] [--skip-decoded]
+# --bin uses a btfsynth binary built before (e.g. a copy taken while sources change).
+#   benches/big_btf.sh [--out DIR] [--bin FILE] [--skip-decoded]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=bench-out/big-btf
 decoded=1
+bin=
 while [ $# -gt 0 ]; do
   case "$1" in
     --out) out=$2; shift 2 ;;
+    --bin) bin=$2; shift 2 ;;
     --skip-decoded) decoded=0; shift ;;
-    *) echo "usage: benches/big_btf.sh [--out DIR] [--skip-decoded]" >&2; exit 2 ;;
+    *) echo "usage: benches/big_btf.sh [--out DIR] [--bin FILE] [--skip-decoded]" >&2; exit 2 ;;
   esac
 done
 [ -x /usr/bin/time ] || { echo "error: needs GNU time at /usr/bin/time" >&2; exit 1; }
-cargo build --release
-bin=target/release/btfsynth
+if [ -z "$bin" ]; then
+  cargo build --release
+  bin=target/release/btfsynth
+fi
+[ -x "$bin" ] || { echo "error: $bin is not an executable" >&2; exit 1; }
 mkdir -p "$out"
 
 if [ ! -f "$out/big400.btf" ]; then
@@ -36,19 +42,28 @@ if [ ! -f "$out/big400.btf" ]; then
 fi
 
 rows=()
-# Runs `analyze` with the given label and arguments; records wall time and peak memory.
+# Runs `analyze` with the given label and arguments; records its own estimate of the peak
+# (the refusal line under a 1-byte budget), wall time and peak memory.
 run() {
   local label=$1 name=$2
   shift 2
+  local estimate
+  estimate=$(BTFSYNTH_MEMORY=1 $bin -q analyze "$out/big400.btf" --force -o "$out/$name.analysis" "$@" 2>&1 |
+    sed -n 's/.*would need about \(.*\) at its peak.*/\1/p' || true)
   /usr/bin/time -v -o "$out/$name.time" $bin -q analyze "$out/big400.btf" --force -o "$out/$name.analysis" "$@" \
     2>"$out/$name.log" || { echo "error: $label failed; see $out/$name.log" >&2; cat "$out/$name.log" >&2; exit 1; }
   local wall peak
   wall=$(awk -F': ' '/Elapsed \(wall clock\)/ {print $2}' "$out/$name.time")
-  peak=$(awk -F': ' '/Maximum resident set size/ {printf "%.2f GB", $2 / 1e6}' "$out/$name.time")
-  rows+=("| $label | $wall | $peak |")
-  echo "$label: $wall, $peak" >&2
+  peak=$(awk -F': ' '/Maximum resident set size/ {printf "%.2f GiB", $2 / 1048576}' "$out/$name.time")
+  rows+=("| $label | $wall | $peak | $estimate |")
+  echo "$label: $wall, $peak (estimated $estimate)" >&2
 }
 
+# What the decoded path says without a crop: one line, before any work.
+started=$(date +%s.%N)
+refusal=$($bin -q analyze "$out/big400.btf" --decoded --force -o "$out/refused.analysis" 2>&1 || true)
+refused_s=$(echo "$(date +%s.%N) - $started" | bc)
+echo "$refusal" >&2
 run "\`analyze big400.btf\` (factors, no crop, 400²)" full
 run "\`--crop 0,0,192,192\` (factors)" crop192 --crop 0,0,192,192
 run "\`--crop 0,0,64,64\` (factors)" crop64 --crop 0,0,64,64
@@ -59,9 +74,12 @@ fi
 echo
 echo "$(nproc) cores, $(awk '/MemTotal/ {printf "%.0f GB", $2 / 1e6}' /proc/meminfo); $(du -h "$out/big400.btf" | cut -f1) file"
 echo
-echo "| command | wall | peak memory |"
-echo "|---|---|---|"
+echo "| command | wall | peak memory (measured) | peak (btfsynth's estimate) |"
+echo "|---|---|---|---|"
 printf '%s\n' "${rows[@]}"
+printf '| `--decoded`, no crop | refused in %.2f s | — | see below |\n' "$refused_s"
+echo
+echo "$refusal"
 
 if [ "$decoded" = 1 ]; then
   # Agreement of the 64² analyses: texton maps (labels matched by overlap, both ways,
