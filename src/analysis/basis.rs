@@ -205,8 +205,7 @@ pub fn principal_images_low_rank(stack: &LowRankStack, options: &BasisOptions) -
     let (v, g) = leading_eigenvectors_f64(&gram_f64(stack.rows.view()));
     let largest = g.first().copied().unwrap_or(0.0);
     let m = g.iter().take_while(|&&x| x > largest * 1e-12 && x > 0.0).count();
-    let to_orthonormal =
-        Array2::from_shape_fn((v.nrows(), m), |(i, j)| v[[i, j]] * g[j].sqrt());
+    let to_orthonormal = Array2::from_shape_fn((v.nrows(), m), |(i, j)| v[[i, j]] * g[j].sqrt());
     let c = centred.dot(&to_orthonormal);
     let (w, lambda) = leading_eigenvectors_f64(&c.t().dot(&c));
     let inside: f64 = lambda.iter().sum();
@@ -247,7 +246,8 @@ fn gram_f64(rows: ArrayView2<f32>) -> Array2<f64> {
 /// Eigenvectors (columns) and eigenvalues of a symmetric f64 matrix, decreasing, ≥ 0.
 fn leading_eigenvectors_f64(m: &Array2<f64>) -> (Array2<f64>, Vec<f64>) {
     let n = m.nrows();
-    let eigen = nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| 0.5 * (m[[i, j]] + m[[j, i]])).symmetric_eigen();
+    let eigen =
+        nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| 0.5 * (m[[i, j]] + m[[j, i]])).symmetric_eigen();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
     let vectors = Array2::from_shape_fn((n, n), |(i, c)| eigen.eigenvectors[(i, order[c])]);
@@ -307,7 +307,8 @@ pub fn streamed_basis(
     progress.finish();
     let mean = sum.mapv(|s| (s / n as f64) as f32);
     // Centre: Σₐ (xₐ − m) ωₐᵀ = Y − m (Σₐ ωₐ)ᵀ.
-    let omega_sum: Vec<f32> = (0..l).map(|j| (0..n).map(|a| omega(a, j) as f64).sum::<f64>() as f32).collect();
+    let omega_sum: Vec<f32> =
+        (0..l).map(|j| (0..n).map(|a| omega(a, j) as f64).sum::<f64>() as f32).collect();
     for (mut row, &m) in sketch.rows_mut().into_iter().zip(&mean) {
         row.iter_mut().zip(&omega_sum).for_each(|(y, &o)| *y -= m * o);
     }
@@ -522,7 +523,8 @@ mod tests {
         let rebuilt = stack.coords.dot(&stack.rows) + &stack.offset;
         let err = (&rebuilt - &images).iter().map(|v| v.abs()).fold(0.0f32, f32::max);
         assert!(err < 1e-2, "reconstruction error {err}");
-        let total: f64 = (&images - &images.mean_axis(Axis(0)).unwrap()).iter().map(|&v| v as f64 * v as f64).sum();
+        let total: f64 =
+            (&images - &images.mean_axis(Axis(0)).unwrap()).iter().map(|&v| v as f64 * v as f64).sum();
         assert!(stack.outside < 1e-5 * total, "outside {} of {total}", stack.outside);
         let basis = principal_images_low_rank(&stack, &BasisOptions::default()).unwrap();
         assert_eq!(basis.sigma.len(), 4);

@@ -172,7 +172,8 @@ fn decoded_or_streamed(
         (Err(_), Mode::Auto) => {
             let options = stream_options(params);
             let stages = memory::low_rank_stages(n, options.rank, size, params, 0, Some(options));
-            let what = format!("analysing {}x{} texels × {n} images through a streamed basis", size.0, size.1);
+            let what =
+                format!("analysing {}x{} texels × {n} images through a streamed basis", size.0, size.1);
             memory::check(source.path(), &what, &stages, "analyse a part with --crop x,y,w,h")?;
             Ok(Input::Streamed(source))
         }
@@ -183,11 +184,18 @@ fn decoded_or_streamed(
 pub fn run(input: &Input, params: &AnalysisParams, progress: &dyn Progress) -> Result<Analysed> {
     let size = input.size();
     match input {
-        Input::Images(btf) => Ok(Analysed { analysis: analyze(btf, params, progress)?, factors: None, basis: None }),
+        Input::Images(btf) => {
+            Ok(Analysed { analysis: analyze(btf, params, progress)?, factors: None, basis: None })
+        }
         Input::Factors(factors) => {
             let (stack, basis) = match factor_basis(factors) {
                 Some(stack) => {
-                    let info = BasisInfo { kind: "file factors".into(), rank: stack.rank(), captured: 1.0, nonlinearity: None };
+                    let info = BasisInfo {
+                        kind: "file factors".into(),
+                        rank: stack.rank(),
+                        captured: 1.0,
+                        nonlinearity: None,
+                    };
                     (stack, info)
                 }
                 None => {
@@ -324,12 +332,25 @@ pub fn stages(input: &Input, params: &AnalysisParams) -> Vec<Stage> {
         Input::Images(_) => memory::decoded_stages(n, size, params),
         Input::Factors(f) => {
             let exact = factor_basis_is_exact(f);
-            let rank = if exact { f.components().iter().sum::<usize>() + 1 } else { stream_options(params).rank };
-            memory::low_rank_stages(n, rank, size, params, f.bytes(), (!exact).then(|| stream_options(params)))
+            let rank =
+                if exact { f.components().iter().sum::<usize>() + 1 } else { stream_options(params).rank };
+            memory::low_rank_stages(
+                n,
+                rank,
+                size,
+                params,
+                f.bytes(),
+                (!exact).then(|| stream_options(params)),
+            )
         }
-        Input::Streamed(_) => {
-            memory::low_rank_stages(n, stream_options(params).rank, size, params, 0, Some(stream_options(params)))
-        }
+        Input::Streamed(_) => memory::low_rank_stages(
+            n,
+            stream_options(params).rank,
+            size,
+            params,
+            0,
+            Some(stream_options(params)),
+        ),
     }
 }
 

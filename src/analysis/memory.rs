@@ -44,7 +44,13 @@ pub fn check(path: &Path, what: &str, stages: &[Stage], advice: &str) -> Result<
     check_against(path, what, stage, advice, budget()?)
 }
 
-fn check_against(path: &Path, what: &str, stage: &Stage, advice: &str, budget: Option<(u64, String)>) -> Result<()> {
+fn check_against(
+    path: &Path,
+    what: &str,
+    stage: &Stage,
+    advice: &str,
+    budget: Option<(u64, String)>,
+) -> Result<()> {
     match budget {
         Some((limit, source)) if stage.bytes > limit => Err(Error::format(
             path,

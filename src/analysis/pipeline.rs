@@ -1,11 +1,11 @@
 //! `analyze`: a BTF stack in, the texton pyramid with its kNN lists out.
 
+use super::basis::{principal_images_low_rank, LowRankStack};
 use super::convolve::{BankConvolver, Padding};
 use super::filters::FilterBank;
 use super::gamma::distance_table;
 use super::knn::{single_level_lists, two_level_lists, KnnParams, Level};
 use super::pyramid::{downsample, level_sizes};
-use super::basis::{principal_images_low_rank, LowRankStack};
 use super::select::{representatives, representatives_from_basis, selection_basis_options};
 use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
 use crate::btf::Btf;

@@ -135,7 +135,8 @@ mod tests {
     #[test]
     fn reduced_coordinates_keep_the_distances_of_low_rank_features() {
         // 2,000 points on a 20-dimensional subspace of 600 dimensions, plus an offset.
-        let latent = Array2::from_shape_fn((2000, 20), |(i, k)| normal(1, i as i64, k as i64) * (20 - k) as f32);
+        let latent =
+            Array2::from_shape_fn((2000, 20), |(i, k)| normal(1, i as i64, k as i64) * (20 - k) as f32);
         let mixing = Array2::from_shape_fn((20, 600), |(k, j)| normal(2, k as i64, j as i64));
         let features = latent.dot(&mixing) + 3.0;
         let r = reduce(features.view(), 0);

@@ -25,9 +25,9 @@
 
 use super::npy;
 use super::pipeline::Analysis;
-use crate::btf::image_io::linear_to_srgb8;
 use crate::btf::colour::ColourModel;
 use crate::btf::factored::FactoredStack;
+use crate::btf::image_io::linear_to_srgb8;
 use crate::btf::Btf;
 use crate::fsutil::{write_file_atomic, StagedDir};
 use crate::{Error, Result};
@@ -309,7 +309,10 @@ pub fn read_factors(dir: &Path, manifest: &Manifest) -> Result<FactoredStack> {
         return Err(Error::format(dir.join(&info.image_factors), format!("expected shape [3, {n}, K]")));
     }
     if texel.shape != [3, h, w, k] {
-        return Err(Error::format(dir.join(&info.texel_factors), format!("expected shape [3, {h}, {w}, {k}]")));
+        return Err(Error::format(
+            dir.join(&info.texel_factors),
+            format!("expected shape [3, {h}, {w}, {k}]"),
+        ));
     }
     if scale.shape != [n] {
         return Err(Error::format(dir.join(&info.scale), format!("expected shape [{n}]")));

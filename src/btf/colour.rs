@@ -311,7 +311,10 @@ mod tests {
 
     #[test]
     fn affine_models_decode_as_their_matrix() {
-        let pca = ColourModel::Pca { mean: [0.1, 0.2, 0.3], transform: [[1.0, 2.0, 0.0], [0.0, 1.0, 0.5], [0.3, 0.0, 1.0]] };
+        let pca = ColourModel::Pca {
+            mean: [0.1, 0.2, 0.3],
+            transform: [[1.0, 2.0, 0.0], [0.0, 1.0, 0.5], [0.3, 0.0, 1.0]],
+        };
         for model in [ColourModel::Rgb, ColourModel::Yuv, ColourModel::YCoCg, pca] {
             let (m, t) = model.affine().unwrap();
             let v = [0.3f32, -0.2, 0.7];
@@ -321,7 +324,13 @@ mod tests {
                 assert!((got - want[r]).abs() < 1e-5, "{model:?}: {got} vs {}", want[r]);
             }
         }
-        for model in [ColourModel::Lab, ColourModel::Spectral, ColourModel::SpectralLinear, ColourModel::LogYUvOverY, ColourModel::LogRgb] {
+        for model in [
+            ColourModel::Lab,
+            ColourModel::Spectral,
+            ColourModel::SpectralLinear,
+            ColourModel::LogYUvOverY,
+            ColourModel::LogRgb,
+        ] {
             assert!(model.affine().is_none(), "{model:?}");
         }
     }

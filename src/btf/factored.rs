@@ -52,10 +52,17 @@ impl FactoredStack {
         let n = pairs.len();
         let bad = |m: String| Error::format(path, m);
         if image.len() != 3 || texel.len() != 3 {
-            return Err(bad(format!("{} image and {} texel factors; expected 3 channels", image.len(), texel.len())));
+            return Err(bad(format!(
+                "{} image and {} texel factors; expected 3 channels",
+                image.len(),
+                texel.len()
+            )));
         }
         if n == 0 || width == 0 || height == 0 || scale.len() != n {
-            return Err(bad(format!("factors of {n} images of {width}x{height} with {} scales", scale.len())));
+            return Err(bad(format!(
+                "factors of {n} images of {width}x{height} with {} scales",
+                scale.len()
+            )));
         }
         for c in 0..3 {
             let (a, b) = (&image[c], &texel[c]);
@@ -70,7 +77,17 @@ impl FactoredStack {
         if let Some(c) = (0..3).find(|&c| image[c].iter().chain(texel[c].iter()).any(|v| !v.is_finite())) {
             return Err(bad(format!("channel {c}: a factor is not a finite number")));
         }
-        Ok(FactoredStack { path: path.to_path_buf(), width, height, pairs, image, texel, model, log_encoded, scale })
+        Ok(FactoredStack {
+            path: path.to_path_buf(),
+            width,
+            height,
+            pairs,
+            image,
+            texel,
+            model,
+            log_encoded,
+            scale,
+        })
     }
 
     pub fn width(&self) -> usize {

@@ -84,10 +84,21 @@ impl FolderStack {
         if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
             return Err(Error::format(
                 &entries[b].file,
-                format!("has the same light and view directions as {} ({})", entries[a].file.display(), pairs[a]),
+                format!(
+                    "has the same light and view directions as {} ({})",
+                    entries[a].file.display(),
+                    pairs[a]
+                ),
             ));
         }
-        Ok(FolderStack { path: path.to_path_buf(), entries, pairs, width: first.width, height: first.height, crop })
+        Ok(FolderStack {
+            path: path.to_path_buf(),
+            entries,
+            pairs,
+            width: first.width,
+            height: first.height,
+            crop,
+        })
     }
 }
 
@@ -129,7 +140,11 @@ impl crate::btf::ImageSource for FolderStack {
     }
 
     fn decode_all(&self, progress: &dyn Progress) -> Result<Btf> {
-        crate::btf::source::ensure_fits_in_memory(&self.path, self.pairs.len(), self.width * self.height * 3)?;
+        crate::btf::source::ensure_fits_in_memory(
+            &self.path,
+            self.pairs.len(),
+            self.width * self.height * 3,
+        )?;
         read_entries(&self.entries, &LoadOptions { crop: self.crop }, progress)
     }
 }

@@ -134,7 +134,9 @@ pub(crate) fn parse_budget(text: &str) -> Result<Option<(u64, String)>> {
         _ => 0,
     };
     match digits.parse::<f64>() {
-        Ok(v) if scale > 0 && v.is_finite() && v > 0.0 => Ok(Some(((v * scale as f64) as u64, format!("{MEMORY_ENV}={t}")))),
+        Ok(v) if scale > 0 && v.is_finite() && v > 0.0 => {
+            Ok(Some(((v * scale as f64) as u64, format!("{MEMORY_ENV}={t}"))))
+        }
         _ => Err(Error::invalid(format!(
             "{MEMORY_ENV}='{text}': expected a size such as 6G, 512M or a number of bytes, or 'unlimited'"
         ))),

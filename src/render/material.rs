@@ -95,7 +95,12 @@ impl Material {
     }
 
     /// A material of these values: the direction indices and the pair table.
-    fn with_texels(width: usize, height: usize, pairs: Vec<DirectionPair>, pixels: Texels) -> Result<Material> {
+    fn with_texels(
+        width: usize,
+        height: usize,
+        pairs: Vec<DirectionPair>,
+        pixels: Texels,
+    ) -> Result<Material> {
         let views = directions::distinct(pairs.iter().map(|p| p.view));
         let lights = directions::distinct(pairs.iter().map(|p| p.light));
         let mut image_of = vec![None; views.len() * lights.len()];
@@ -177,7 +182,12 @@ impl Material {
             for (k, px) in out.chunks_exact_mut(3).enumerate() {
                 let (t, i) = (k / n, k % n);
                 let v = [values[0][[t, i]], values[1][[t, i]], values[2][[t, i]]];
-                px.copy_from_slice(&crate::btf::factored::decode_channels(f.model, f.log_encoded, f.scale[i], v));
+                px.copy_from_slice(&crate::btf::factored::decode_channels(
+                    f.model,
+                    f.log_encoded,
+                    f.scale[i],
+                    v,
+                ));
             }
         });
         Material::with_texels(w, h, f.pairs().to_vec(), Texels::Decoded(pixels))
@@ -231,9 +241,7 @@ impl Material {
     /// Image `image`'s pixels, `[height][width][3]` linear RGB (a copy).
     pub fn image(&self, image: u32) -> Vec<f32> {
         let n = self.pairs.len();
-        (0..self.width * self.height)
-            .flat_map(|t| self.at((t * n + image as usize) * 3).to_array())
-            .collect()
+        (0..self.width * self.height).flat_map(|t| self.at((t * n + image as usize) * 3).to_array()).collect()
     }
 
     /// The images to blend for a view and a light given in the local frame (x along s,
@@ -523,6 +531,59 @@ mod tests {
         let light = Vec3::new(0.6, 0.0, 0.8);
         let c = m.shade(&m.blend(Vec3::new(0.0, 0.3, 0.9).normalize(), light), 0.0, 0.0);
         assert!((c - Vec3::new(0.4, 0.2, 0.8)).length() < 1e-6);
+    }
+
+    /// A 5×4 ubo81 sample as factors (3 components, colour model 11, so the decoding is
+    /// not linear) and the same sample decoded when opened.
+    fn factored_pair() -> (Material, Material) {
+        use crate::btf::colour::ColourModel;
+        let pairs = DirectionSet::Ubo81.pairs();
+        let n = pairs.len();
+        let factor = |seed: u64, rows: usize| {
+            ndarray::Array2::from_shape_fn((rows, 3), |(r, k)| {
+                0.3 * crate::seeded::unit(seed, r as i64, k as i64, 0) - if k == 0 { 0.5 } else { 0.1 }
+            })
+        };
+        let image = (0..3).map(|c| factor(20 + c, n)).collect();
+        let texel = (0..3).map(|c| factor(30 + c, 20)).collect();
+        let scale = (0..n).map(|i| 1.0 + (i % 3) as f32).collect();
+        let f = FactoredStack::new(
+            std::path::Path::new("t"),
+            (5, 4),
+            pairs,
+            image,
+            texel,
+            ColourModel::LogYUvOverY,
+            false,
+            scale,
+        )
+        .unwrap();
+        let on_the_fly =
+            Material::with_texels(5, 4, f.pairs().to_vec(), Texels::Factors(Box::new(f.clone()))).unwrap();
+        (Material::from_factors(f).unwrap(), on_the_fly)
+    }
+
+    #[test]
+    fn a_factored_material_shades_as_its_decoded_values() {
+        let (decoded, factored) = factored_pair();
+        assert!(!decoded.is_factored() && factored.is_factored());
+        for i in [0u32, 40, 80] {
+            for (a, b) in decoded.image(i).iter().zip(factored.image(i)) {
+                assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "image {i}: {a} vs {b}");
+            }
+        }
+        for k in 0..50 {
+            let angle = |j| crate::seeded::unit(11, k, j, 0);
+            let view = Vec3::new(0.5 * angle(0) - 0.25, 0.5 * angle(1) - 0.25, 1.0).normalize();
+            let light = Vec3::new(angle(2) - 0.5, angle(3) - 0.5, 0.7).normalize();
+            let (u, v) = (angle(4), angle(5));
+            let (a, b) = (
+                decoded.shade(&decoded.blend(view, light), u, v),
+                factored.shade(&factored.blend(view, light), u, v),
+            );
+            assert!((a - b).length() <= 1e-5 * a.length().max(1.0), "{a} vs {b}");
+            assert!(a.length() > 0.0);
+        }
     }
 
     #[test]

@@ -13,7 +13,7 @@ use btfsynth::btf::colour::ColourModel;
 use btfsynth::btf::convert::{to_btf, ToBtfOptions};
 use btfsynth::btf::gen::{generate, GenParams, MaterialKind};
 use btfsynth::btf::ubo2014::Scalar;
-use btfsynth::btf::DirectionSet;
+use btfsynth::btf::{Crop, DirectionSet};
 use btfsynth::progress::Silent;
 use btfsynth::render::Material;
 use common::{assert_one_line_error, entries};
@@ -43,7 +43,11 @@ fn params() -> AnalysisParams {
 }
 
 fn analyse(path: &Path, mode: Mode) -> (Input, input::Analysed) {
-    let input = input::open(path, None, mode, &params(), &Silent).unwrap();
+    analyse_crop(path, None, mode)
+}
+
+fn analyse_crop(path: &Path, crop: Option<Crop>, mode: Mode) -> (Input, input::Analysed) {
+    let input = input::open(path, crop, mode, &params(), &Silent).unwrap();
     let analysed = input::run(&input, &params(), &Silent).unwrap();
     (input, analysed)
 }
@@ -86,8 +90,16 @@ fn gamma_spectrum_difference(a: &Analysis, b: &Analysis, level: usize) -> f64 {
 fn a_linear_dfmf_analysed_from_its_factors_agrees_with_its_decoded_images() {
     let dir = tempfile::tempdir().unwrap();
     let path = small_dfmf(dir.path(), ColourModel::Rgb);
-    let (decoded_input, decoded) = analyse(&path, Mode::Decoded);
-    let (factor_input, factors) = analyse(&path, Mode::Auto);
+    // The whole file, and a crop off its corner (the factor rows of a window).
+    for crop in [None, Some(Crop { x: 5, y: 3, width: 24, height: 26 })] {
+        linear_dfmf_agrees(&path, crop);
+    }
+}
+
+fn linear_dfmf_agrees(path: &Path, crop: Option<Crop>) {
+    let (decoded_input, decoded) = analyse_crop(path, crop, Mode::Decoded);
+    let (factor_input, factors) = analyse_crop(path, crop, Mode::Auto);
+    assert_eq!(factor_input.size(), crop.map_or((32, 32), |c| (c.width as usize, c.height as usize)));
     assert!(matches!(decoded_input, Input::Images(_)));
     assert!(matches!(factor_input, Input::Factors(_)));
     assert_eq!(input::describe(&factor_input), "the file's factors");
@@ -100,7 +112,7 @@ fn a_linear_dfmf_analysed_from_its_factors_agrees_with_its_decoded_images() {
         assert!((a.basis_energy - b.basis_energy).abs() < 1e-4, "level {level}");
         let agree = agreement(&a.map.labels, &b.map.labels);
         let gamma = gamma_spectrum_difference(&decoded.analysis, &factors.analysis, level);
-        eprintln!("linear, level {level}: agreement {agree:.4}, Γ spectrum {gamma:.5}");
+        eprintln!("linear, crop {crop:?}, level {level}: agreement {agree:.4}, Γ spectrum {gamma:.5}");
         assert!(agree >= 0.97, "level {level}: texton maps agree on {agree:.3}");
         assert!(gamma < 0.02, "level {level}: Γ spectra differ by {gamma:.4}");
     }
@@ -129,8 +141,16 @@ fn a_log_luminance_dfmf_is_analysed_through_a_streamed_basis_within_k_means_nois
     };
     for level in 0..2 {
         let (a, b) = (&decoded.analysis.levels[level].textons, &streamed.analysis.levels[level].textons);
-        eprintln!("level {level}: basis energy decoded {:.4}, streamed {:.4}", a.basis_energy, b.basis_energy);
-        assert!((a.basis_energy - b.basis_energy).abs() < 0.01, "level {level}: {} vs {}", a.basis_energy, b.basis_energy);
+        eprintln!(
+            "level {level}: basis energy decoded {:.4}, streamed {:.4}",
+            a.basis_energy, b.basis_energy
+        );
+        assert!(
+            (a.basis_energy - b.basis_energy).abs() < 0.01,
+            "level {level}: {} vs {}",
+            a.basis_energy,
+            b.basis_energy
+        );
         let agree = agreement(&a.map.labels, &b.map.labels);
         let gamma = gamma_spectrum_difference(&decoded.analysis, &streamed.analysis, level);
         let c = &reseeded.analysis.levels[level].textons;
@@ -140,7 +160,10 @@ fn a_log_luminance_dfmf_is_analysed_through_a_streamed_basis_within_k_means_nois
             "level {level}: streamed vs decoded: agreement {agree:.3}, Γ {gamma:.3}; seed 1 vs 0: agreement {noise_agree:.3}, Γ {noise_gamma:.3}"
         );
         assert!(agree >= noise_agree - 0.1, "level {level}: agreement {agree:.3} vs noise {noise_agree:.3}");
-        assert!(gamma <= noise_gamma + 0.1, "level {level}: Γ differs by {gamma:.3} vs noise {noise_gamma:.3}");
+        assert!(
+            gamma <= noise_gamma + 0.1,
+            "level {level}: Γ differs by {gamma:.3} vs noise {noise_gamma:.3}"
+        );
     }
 }
 
@@ -163,7 +186,8 @@ fn the_stored_factor_sample_reads_back_as_the_decoded_images() {
         assert_eq!(manifest.sample.as_ref().unwrap().colour_model, model.id());
         assert!(manifest.source.fingerprint.starts_with("fnv1a64-factors:"));
 
-        let (images, factors) = (SampleImages::open(&out_images).unwrap(), SampleImages::open(&out_factors).unwrap());
+        let (images, factors) =
+            (SampleImages::open(&out_images).unwrap(), SampleImages::open(&out_factors).unwrap());
         assert!(factors.is_factored() && !images.is_factored());
         let (mut worst, mut sum, mut count) = (0f32, 0f64, 0usize);
         for i in (0..images.len()).step_by(7) {
@@ -218,4 +242,3 @@ fn an_analysis_that_would_not_fit_in_memory_is_refused_before_any_work() {
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     assert!(String::from_utf8_lossy(&run.stderr).contains("from the file's factors"));
 }
-

@@ -240,7 +240,9 @@ impl BonnBtf {
     /// log-encoded, and the components of each channel, read from the header alone.
     pub fn factor_layout(&self) -> Option<(ColourModel, bool, Vec<usize>)> {
         match &self.body {
-            Body::Factors(f) => Some((f.model, f.log_encoded, f.channels.iter().map(|c| c.components).collect())),
+            Body::Factors(f) => {
+                Some((f.model, f.log_encoded, f.channels.iter().map(|c| c.components).collect()))
+            }
             Body::Bdi(_) => None,
         }
     }
