@@ -198,4 +198,24 @@ mod tests {
         assert!(decoded > 50 << 30, "{}", gib(decoded));
         assert!(factors < 6 << 30, "{}", gib(factors));
     }
+
+    #[test]
+    fn the_decoded_peak_counts_the_whole_stack_only_when_representatives_are_chosen() {
+        let params = AnalysisParams::default();
+        // The UBO2014 case of issue #21, killed by the kernel at 24.3 GB: a 192² crop of
+        // 22,801 images holds them as f16 and, for the selection, as f32 rows twice.
+        let stages = decoded_stages(22_801, (192, 192), &params);
+        let stage = peak(&stages).unwrap();
+        let peak_gib = stage.bytes as f64 / (1u64 << 30) as f64;
+        assert!((22.0..25.0).contains(&peak_gib), "{peak_gib} GiB");
+        assert_eq!(stage.name, "selecting representative images");
+        let few = decoded_stages(256, (64, 64), &params);
+        assert!(few.iter().all(|s| s.name != "selecting representative images"), "{few:?}");
+    }
+
+    #[test]
+    fn no_figure_from_the_platform_means_no_refusal() {
+        let stage = Stage { name: "anything".into(), bytes: u64::MAX };
+        assert!(check_against(Path::new("big.btf"), "analysing it", &stage, "use --crop", None).is_ok());
+    }
 }

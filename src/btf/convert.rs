@@ -4,7 +4,7 @@
 
 use crate::btf::colour::ColourModel;
 use crate::btf::factorize::{factorize, Factorization};
-use crate::btf::source::{self, ImageSource};
+use crate::btf::source::ImageSource;
 use crate::btf::ubo2014::write::{write_dfmf, DfmfGeometry, DfmfOptions};
 use crate::btf::ubo2014::{BonnBtf, Rotation, Scalar};
 use crate::btf::{load, Btf, Crop, LoadOptions};
@@ -15,7 +15,7 @@ use std::path::Path;
 
 /// Opens any stack lazily where its format allows (`.btf`, zip), else reads it whole.
 pub fn open_stack(path: &Path, crop: Option<Crop>, progress: &dyn Progress) -> Result<Box<dyn ImageSource>> {
-    match source::open(path, crop)? {
+    match crate::btf::stack_file::open(path, crop)? {
         Some(lazy) => Ok(lazy),
         None => Ok(Box::new(load(path, &LoadOptions { crop }, progress)?)),
     }

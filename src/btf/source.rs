@@ -3,8 +3,8 @@
 //! A measured BTF file can hold far more than memory: a 400×400 UBO2014 material is
 //! 22,801 images, 22 GB as f16. An [`ImageSource`] knows its size and directions up front
 //! and decodes image `i` when asked, so `info` reads only a header, `convert` streams image
-//! by image, and `--crop` decodes only the crop. [`open`] gives the lazy source of a `.btf`
-//! file or a zip archive; [`Btf`] itself is the in-memory source.
+//! by image, and `--crop` decodes only the crop. [`crate::btf::stack_file::open`] gives the
+//! lazy source of a `.btf` file or a zip archive; [`Btf`] itself is the in-memory source.
 
 use crate::btf::{Btf, Crop, DirectionPair};
 use crate::progress::Progress;
@@ -70,20 +70,6 @@ impl ImageSource for Btf {
     }
 }
 
-/// The lazy source of a file that holds a whole stack (a Bonn `.btf` file or a zip of
-/// UBO2003/ATRIUM images), restricted to `crop`; `None` if `path` is not such a file
-/// (a directory, a manifest or one image, which [`crate::btf::load()`] reads).
-pub fn open(path: &Path, crop: Option<Crop>) -> Result<Option<Box<dyn ImageSource>>> {
-    if crate::btf::ubo2014::is_bonn_file(path) {
-        let file = crate::btf::ubo2014::BonnBtf::open(path)?;
-        return Ok(Some(Box::new(file.into_window(crop)?)));
-    }
-    if crate::btf::archive::is_zip(path) {
-        return Ok(Some(Box::new(crate::btf::archive::ZipStack::open(path, crop)?)));
-    }
-    Ok(None)
-}
-
 /// Fails with a message that suggests `--crop` when `images` decoded images of
 /// `per_image` f16 values would not fit in the memory budget ([`memory_budget`]).
 pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Result<()> {
@@ -144,7 +130,7 @@ pub(crate) fn parse_budget(text: &str) -> Result<Option<(u64, String)>> {
 }
 
 /// `MemAvailable` from /proc/meminfo, in bytes.
-pub fn available_memory() -> Option<u64> {
+pub(crate) fn available_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

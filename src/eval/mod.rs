@@ -1,7 +1,7 @@
 //! Quality of a synthesized result against its sample.
 //!
 //! - [`picture`]: image space, on what a user sees: nearest-patch energy at two scales,
-//!   colour χ², contrast; [`repetition`]: sample places recurring at regular offsets, and
+//!   colour χ², contrast; [`quality`] all of them at once; [`repetition`]: sample places recurring at regular offsets, and
 //!   how evenly the sample is used.
 //! - [`coords`]: the coordinate map: collapse, smear, copy, coherence.
 //! - [`texton`]: texton space (Tong's terms): texton χ² and Γ energy.
@@ -11,11 +11,13 @@
 
 pub mod coords;
 pub mod picture;
+pub mod quality;
 pub mod repetition;
 pub mod report;
 pub mod texton;
 
 pub use coords::{coord_quality, CoordQuality};
-pub use picture::{picture_quality, Picture, PictureQuality};
+pub use picture::Picture;
+pub use quality::{picture_quality, PictureQuality};
 pub use repetition::Repetition;
 pub use texton::{chi2, energy, TextonQuality};

@@ -5,9 +5,6 @@
 //! Texton-space figures can look perfect on a broken result (a smear of one texel, a
 //! featureless blur); these cannot, because they compare what is seen.
 
-use super::repetition::{repetition, Repetition};
-use serde::Serialize;
-
 /// An RGB picture, row-major, sRGB-encoded values in [0, 1].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Picture {
@@ -66,50 +63,12 @@ pub fn encode_srgb(v: f32) -> f32 {
     }
 }
 
-/// The image-space measures of one result picture against the sample picture.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct PictureQuality {
-    /// Mean over the result's 7×7 patches (every [`PATCH_STRIDE`]th pixel) of the squared
-    /// difference to the nearest 7×7 patch of the sample, per value (sRGB, 0–1). 0 when every
-    /// patch exists in the sample; a copy with seams or smears scores above a coherent one,
-    /// and noise far above.
-    pub patch_energy: f64,
-    /// The same on both pictures halved (7×7 patches of 2×2 means): structure at twice the
-    /// scale, e.g. whole stones.
-    pub patch_energy_coarse: f64,
-    /// ½ Σ (p − q)² / (p + q) between 8×8×8-bin colour histograms: 0 identical, 1 disjoint.
-    pub colour_chi2: f64,
-    /// Standard deviation of the result's luma over the sample's: 1 keeps the sample's
-    /// contrast, below 1 is washed out (blur, collapse onto flat texels).
-    pub contrast: f64,
-    /// How strongly sample places recur at regular offsets, and how evenly the sample is
-    /// used ([`super::repetition`]).
-    #[serde(flatten)]
-    pub repetition: Repetition,
-}
-
 /// Side of the patches compared.
 pub const PATCH_SIDE: usize = 7;
 /// Result patches are taken every this many pixels in x and y (the sample's at every pixel).
 pub const PATCH_STRIDE: usize = 4;
 
-/// Every measure of `result` against `sample`. `tileable`: the sample wraps, so its patches
-/// may cross its border.
-pub fn picture_quality(result: &Picture, sample: &Picture, tileable: bool) -> PictureQuality {
-    let (result_half, sample_half) = (result.half(), sample.half());
-    let positions = patch_positions(result, PATCH_STRIDE, false);
-    let nearest = nearest_patches(&patch_matrix(result, &positions), sample, tileable);
-    let sources: Vec<u32> = nearest.iter().map(|n| n.0).collect();
-    PictureQuality {
-        patch_energy: mean_energy(&nearest),
-        patch_energy_coarse: patch_energy(&result_half, &sample_half, PATCH_STRIDE / 2, tileable),
-        colour_chi2: colour_chi2(result, sample),
-        contrast: contrast(result, sample),
-        repetition: repetition(result, &positions, &sources, sample, tileable),
-    }
-}
-
-/// Mean nearest-patch squared difference per value (see [`PictureQuality::patch_energy`]).
+/// Mean nearest-patch squared difference per value (see [`super::PictureQuality::patch_energy`]).
 /// NaN if either picture is smaller than a patch.
 pub fn patch_energy(result: &Picture, sample: &Picture, stride: usize, tileable: bool) -> f64 {
     let positions = patch_positions(result, stride.max(1), false);
@@ -134,7 +93,7 @@ pub(crate) fn nearest_patch_energy(queries: &ndarray::Array2<f32>, sample: &Pict
 }
 
 /// The mean per value of the nearest patches' squared differences (NaN for none).
-fn mean_energy(nearest: &[(u32, f64)]) -> f64 {
+pub(crate) fn mean_energy(nearest: &[(u32, f64)]) -> f64 {
     if nearest.is_empty() {
         return f64::NAN;
     }
@@ -247,6 +206,7 @@ pub fn contrast(result: &Picture, sample: &Picture) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::quality::picture_quality;
     use rand::seq::SliceRandom;
     use rand::SeedableRng;
 

@@ -3,9 +3,9 @@
 
 use super::coords::{coord_quality, CoordQuality};
 use super::picture::{
-    colour_chi2, contrast, nearest_patch_energy, picture_quality, wrap_seam_energy, Picture, PictureQuality,
-    PATCH_SIDE, PATCH_STRIDE,
+    colour_chi2, contrast, nearest_patch_energy, wrap_seam_energy, Picture, PATCH_SIDE, PATCH_STRIDE,
 };
+use super::quality::{picture_quality, PictureQuality};
 use super::repetition::Repetition;
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};

@@ -8,14 +8,14 @@
 //!   images in the analysis directory (`map_normal.png`, `map_height.exr`, cropped like the
 //!   sample, at the file's own depth) and lists it in `analysis.json` ([`MapInfo`]).
 //! - `synth --plane` writes `result_<kind>.<png|exr>`, each texel the map's sample at the
-//!   plane's coordinate ([`write_plane_maps`]): same depth, same format, same channels.
+//!   plane's coordinate ([`stored::write_plane_maps`]): same depth, same format, same channels.
 //! - `export` bakes each map into its glTF slot (see `crate::export`).
 
 pub mod image;
+pub mod stored;
 
 pub use image::{Depth, MapImage};
 
-use crate::analysis::store;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -169,38 +169,6 @@ pub fn store_maps(dir: &Path, maps: &[MaterialMap]) -> Result<Vec<MapInfo>> {
             })
         })
         .collect()
-}
-
-/// Reads the maps an analysis directory lists (none for analyses made without `--maps`).
-pub fn open_maps(analysis_dir: &Path) -> Result<Vec<MaterialMap>> {
-    let manifest = store::read_manifest(analysis_dir)?;
-    manifest
-        .maps
-        .iter()
-        .map(|info| {
-            let path = analysis_dir.join(&info.file);
-            let image = MapImage::read(&path)?;
-            if (image.width, image.height) != (manifest.width, manifest.height) {
-                return Err(Error::format(&path, "the map does not have the sample's size"));
-            }
-            Ok(MaterialMap { kind: info.kind, source: path, image })
-        })
-        .collect()
-}
-
-/// Writes every map of the analysis in `analysis_dir` through a plane's coordinates
-/// (`coordinates[y * width + x]` = sample texel) into `dir` as `result_<kind>.<png|exr>`.
-pub fn write_plane_maps(
-    analysis_dir: &Path,
-    coordinates: &[[i32; 2]],
-    (width, height): (usize, usize),
-    dir: &Path,
-) -> Result<()> {
-    for map in open_maps(analysis_dir)? {
-        let out = map.image.resample(width, height, coordinates);
-        out.write(&dir.join(format!("result_{}.{}", map.kind.name(), out.depth.extension())))?;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

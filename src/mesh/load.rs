@@ -8,9 +8,10 @@ use std::path::Path;
 /// How a mesh file is turned into a [`Mesh`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LoadOptions {
-    /// Vertices closer than this fraction of the bounding-box diagonal are welded into one
-    /// (default `1e-6`: far below any real feature, above the rounding of coordinates
-    /// written with six significant digits). `0` welds only identical positions.
+    /// Vertices closer than this fraction of the bounding-box diagonal (and than 1% of the
+    /// shortest edge at either of them) are welded into one (default `1e-6`: far below any
+    /// real feature, above the rounding of coordinates written with six significant
+    /// digits). `0` welds only identical positions.
     pub weld_tolerance: f32,
 }
 
@@ -30,14 +31,40 @@ pub fn load(path: &Path) -> Result<Mesh> {
 pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Mesh> {
     let soup = read_soup(path)?;
     let mesh = prepare::prepare(soup, path, options)?;
+    check_fans(&mesh, path)?;
     tracing::info!("{}: {}", path.display(), topology::summary(&mesh));
     Ok(mesh)
+}
+
+/// The most triangles one vertex may be a corner of. Polygons are fan-triangulated, so a
+/// polygon of thousands of corners gives one vertex that many slivers, on which remeshing
+/// takes minutes and gigabytes; no real mesh comes near (a vertex has about six).
+pub const MAX_VERTEX_TRIANGLES: usize = 1024;
+
+/// Refuses a vertex in more than [`MAX_VERTEX_TRIANGLES`] triangles.
+fn check_fans(mesh: &Mesh, path: &Path) -> Result<()> {
+    let mut count = vec![0usize; mesh.vertex_count()];
+    for t in mesh.triangles() {
+        for &i in t {
+            count[i as usize] += 1;
+        }
+    }
+    match count.iter().enumerate().find(|&(_, &n)| n > MAX_VERTEX_TRIANGLES) {
+        Some((v, &n)) => Err(Error::format(
+            path,
+            format!(
+                "vertex {v} is a corner of {n} triangles, more than {MAX_VERTEX_TRIANGLES} (a polygon of \
+                 that many corners, fan-triangulated?); triangulate it evenly first"
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Parses `path` into a triangle soup without validating it.
 pub fn read_soup(path: &Path) -> Result<Soup> {
     let parse = parser_for(path)?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::fsutil::read_input(path)?;
     parse(&bytes, path)
 }
 
@@ -81,7 +108,7 @@ mod tests {
     #[test]
     fn the_bundled_bunny_loads_closed_with_its_documented_topology() {
         let bunny = load(&bundled("bunny-1k8.obj")).expect("bunny");
-        assert!(topology::is_manifold(&bunny));
+        assert!(crate::mesh::manifold::is_manifold(bunny.triangles()));
         let bunny = topology::summary(&bunny);
         assert_eq!((bunny.vertices, bunny.faces, bunny.boundary_edges), (1839, 3674, 0));
         assert_eq!((bunny.components, bunny.euler_characteristic), (1, 2));
@@ -93,9 +120,9 @@ mod tests {
         let (Some(cow), Some(dragon)) = (shared(test, "cow.off"), shared(test, "dragon-10k.off")) else {
             return;
         };
-        assert!(topology::is_manifold(&load(&cow).expect("cow")));
+        assert!(crate::mesh::manifold::is_manifold(load(&cow).expect("cow").triangles()));
         let dragon = load(&dragon).expect("dragon");
-        assert!(topology::is_manifold(&dragon));
+        assert!(crate::mesh::manifold::is_manifold(dragon.triangles()));
         assert_eq!(topology::summary(&dragon).boundary_edges, 6);
     }
 

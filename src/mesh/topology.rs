@@ -201,13 +201,6 @@ pub fn euler_characteristic(mesh: &Mesh) -> i64 {
     mesh.vertex_count() as i64 - edges(mesh).len() as i64 + mesh.face_count() as i64
 }
 
-/// True if every edge has one or two faces (traversing it in opposite directions) and the
-/// faces around every vertex form one fan. Always true of a [`Mesh`] made by this crate;
-/// tests use it to check that operations keep it so.
-pub fn is_manifold(mesh: &Mesh) -> bool {
-    super::manifold::is_manifold(mesh.triangles())
-}
-
 /// Counts that describe a mesh's topology, for logs and tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Summary {
@@ -265,7 +258,7 @@ mod tests {
         let s = summary(&cube());
         assert_eq!((s.vertices, s.faces, s.edges, s.boundary_edges), (8, 12, 18, 0));
         assert_eq!((s.components, s.euler_characteristic), (1, 2));
-        assert!(is_manifold(&cube()));
+        assert!(crate::mesh::manifold::is_manifold(cube().triangles()));
     }
 
     #[test]

@@ -25,10 +25,10 @@
 
 use super::blend::Nearest4;
 use super::camera::Camera;
-use super::cpu::Tracer;
 use super::environment::Environment;
 use super::material::Material;
 use super::scene::Scene;
+use super::tracer::Tracer;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::f32::consts::PI;

@@ -22,6 +22,7 @@ pub mod overlay;
 pub mod relight;
 pub mod scene;
 pub mod shadow_map;
+pub mod tracer;
 #[cfg(feature = "gpu")]
 pub mod viewer;
 

@@ -151,7 +151,7 @@ pub enum Shadows<'a> {
     /// Everything facing the light is lit.
     None,
     /// A shadow ray per vertex: exact.
-    Rays(&'a super::cpu::Tracer),
+    Rays(&'a super::tracer::Tracer),
     /// A lookup in a shadow map rasterised for this light: faster, exact to about a texel.
     Map(&'a super::shadow_map::ShadowMap),
 }
@@ -171,7 +171,7 @@ impl Relighter {
         scene: &Scene,
         material: &Material,
         camera: &super::Camera,
-        tracer: Option<&super::cpu::Tracer>,
+        tracer: Option<&super::tracer::Tracer>,
     ) -> Relighter {
         let positions = scene.mesh.positions();
         let needed = tracer.map(|t| scene.seen_triangle_corners(camera, t));
@@ -232,7 +232,7 @@ impl Relighter {
 impl Scene {
     /// Per vertex, whether it is a corner of a triangle that has a corner `camera` sees: one
     /// facing the camera with nothing between them.
-    pub fn seen_triangle_corners(&self, camera: &super::Camera, tracer: &super::cpu::Tracer) -> Vec<bool> {
+    pub fn seen_triangle_corners(&self, camera: &super::Camera, tracer: &super::tracer::Tracer) -> Vec<bool> {
         let positions = self.mesh.positions();
         let seen: Vec<bool> = (0..positions.len())
             .into_par_iter()

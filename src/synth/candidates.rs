@@ -1,8 +1,8 @@
 //! Candidate sets (Tong §5.2): k-coherence from the kNN lists at the forward-shifted
 //! coordinates of the patch's vertices, or every pixel (full search).
 
-use super::engine::State;
 use super::sample::SampleLevel;
+use super::state::State;
 
 /// How candidates are formed (Tong §5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -12,13 +12,18 @@ pub mod adaptive;
 pub mod candidates;
 pub mod constrained;
 pub mod engine;
+pub(crate) mod flatten;
 pub(crate) mod metric;
+pub mod pass;
 pub mod plane;
 pub mod recipe;
 pub mod round;
 pub mod round_pass;
 pub mod sample;
+pub mod slot;
+pub(crate) mod square_pass;
 pub mod start;
+pub mod state;
 pub mod surface;
 pub mod surface_map;
 pub mod sweep;
@@ -33,13 +38,15 @@ pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
 use crate::{Error, Result};
-use engine::{pass, visit_order, Parent, PassPlan, PassStats};
+use engine::{visit_order, PassPlan, PassStats};
 use metric::{AppearanceMetric, GammaMetric, Metric};
-use rand::SeedableRng;
+use pass::{Colouring, Schedule};
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use recipe::pass_search;
 use round::{RoundSample, RoundStencil};
 use round_pass::RoundTarget;
+use square_pass::{Parent, SquareMatch};
 use std::time::{Duration, Instant};
 use target::TargetLevel;
 
@@ -92,6 +99,13 @@ pub fn synthesize(
     if targets.is_empty() || targets.len() > sample.levels.len() {
         return Err(Error::invalid("synthesis needs one target level per sample level"));
     }
+    let last = &sample.levels[targets.len() - 1];
+    if params.neighborhood > last.width.min(last.height) {
+        return Err(Error::invalid(format!(
+            "a {0}x{0} neighbourhood does not fit in the coarsest sample level in use ({1}x{2})",
+            params.neighborhood, last.width, last.height
+        )));
+    }
     let preset = &params.preset;
     preset.validate()?;
     preset.check_search(params.search)?;
@@ -129,10 +143,22 @@ pub fn synthesize(
         };
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
+        let interleaved = recipe.passes.iter().any(|p| p.order == VisitOrder::Interleaved);
+        let colouring = interleaved.then(|| Colouring::of(target)).flatten();
         for p in &recipe.passes {
-            let order = visit_order(target, p.order, sweep.as_ref().map(|s| s[l].as_slice()), &mut rng);
+            let schedule = match (&colouring, p.order) {
+                (Some(colouring), VisitOrder::Interleaved) => {
+                    Schedule::Interleaved { colouring, seed: rng.random() }
+                }
+                _ => Schedule::Order(visit_order(
+                    target,
+                    p.order,
+                    sweep.as_ref().map(|s| s[l].as_slice()),
+                    &mut rng,
+                )),
+            };
             let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref(), rounds: rounds.as_ref() };
-            stats = run_pass(p, &level, &mut current, params, &order, &mut rng)?;
+            stats = run_pass(p, &level, &mut current, params, &schedule, &mut rng)?;
             progress.advance(1);
         }
         let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
@@ -191,7 +217,7 @@ fn run_pass(
     inputs: &LevelInputs,
     state: &mut State,
     params: &SynthParams,
-    order: &[u32],
+    order: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
     Ok(match p.metric {
@@ -216,12 +242,12 @@ fn run_pass(
 }
 
 #[allow(clippy::too_many_arguments)]
-fn run_pass_with<'a, M: Metric>(
+fn run_pass_with<'a, M: Metric + Sync>(
     p: &Pass,
     inputs: &LevelInputs<'a>,
     state: &mut State,
     params: &SynthParams,
-    order: &[u32],
+    order: &Schedule,
     rng: &mut ChaCha8Rng,
     metric: impl Fn(&'a SampleLevel, usize) -> M,
 ) -> PassStats {
@@ -249,7 +275,8 @@ fn run_pass_with<'a, M: Metric>(
         select: p.select,
         coherence_bias: p.coherence_bias,
     };
-    pass(target, state, level_sample, &own, parent.as_ref(), &plan, order, rng)
+    let make = || SquareMatch::new(target, level_sample, &own, parent.as_ref(), p.mask);
+    pass::run_scheduled_pass(target, state, level_sample, make, &plan, order, rng)
 }
 
 /// Random patches on `target`, their seams matched with the metric `kind`.

@@ -110,7 +110,7 @@ pub fn write_plane(
         )?;
         save_picture(&images.picture(probe.image), &dir.join(format!("sample_{tag}.png")))?;
     }
-    crate::maps::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
+    crate::maps::stored::write_plane_maps(analysis_dir, &result.state.uv, (w, h), dir)?;
 
     let fingerprint = crate::analysis::store::read_manifest(analysis_dir)?.source.fingerprint;
     let manifest = serde_json::json!({

@@ -21,9 +21,9 @@ pub mod cache;
 
 pub use cache::{MarchingCache, MarchingOrigin, MarchingSource};
 
+use super::flatten::{barycentric, flatten, slot, Patch, Topology};
 use super::sample::AppearanceMap;
-use super::surface::{barycentric, flatten, slot, Patch, Topology};
-use super::target::Slot;
+use super::slot::{Slot, OUTSIDE};
 use crate::mesh::frames::Frames;
 use crate::mesh::Mesh;
 use crate::{Error, Result};
@@ -105,7 +105,7 @@ impl StartPoint {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Arc {
     from: f32,
-    /// The face's corners, or [`super::target::OUTSIDE`] beyond the patch.
+    /// The face's corners, or [`OUTSIDE`] beyond the patch.
     vertices: [u32; 3],
     /// The face's corners flattened, in the vertex's reference frame (world units).
     corners: [Vec2; 3],
@@ -265,7 +265,7 @@ impl SurfaceMarching {
         {
             return Err("the arc offsets do not run from 0 to the arc count".into());
         }
-        let in_range = |i: u32| i == super::target::OUTSIDE || (i as usize) < vertices;
+        let in_range = |i: u32| i == OUTSIDE || (i as usize) < vertices;
         if let Some(arc) =
             arcs.iter().find(|a| !a.from.is_finite() || !a.vertices.iter().all(|&i| in_range(i)))
         {
@@ -350,7 +350,7 @@ fn point_slot(arcs: &[Arc], turn: f32, radius: f32) -> Slot {
     let Some(arc) = arcs.get(if after == 0 { arcs.len().wrapping_sub(1) } else { after - 1 }) else {
         return Slot::DEFAULT;
     };
-    if arc.vertices[0] == super::target::OUTSIDE {
+    if arc.vertices[0] == OUTSIDE {
         return Slot::DEFAULT;
     }
     let q = Vec2::from_angle(turn * TAU) * radius;
@@ -393,7 +393,7 @@ fn circle_arcs(mesh: &Mesh, patch: &Patch, radius: f32) -> Vec<Arc> {
         let face = faces.iter().find(|(_, corners)| barycentric(middle, corners).is_some());
         let arc = match face {
             Some(&(f, corners)) => Arc { from, vertices: mesh.triangles()[f as usize], corners },
-            None => Arc { from, vertices: [super::target::OUTSIDE; 3], corners: [Vec2::ZERO; 3] },
+            None => Arc { from, vertices: [OUTSIDE; 3], corners: [Vec2::ZERO; 3] },
         };
         if arcs.last().is_none_or(|last| last.vertices != arc.vertices) {
             arcs.push(arc);

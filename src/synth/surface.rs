@@ -8,22 +8,14 @@
 //! (dx, dy) = (i − r, j − r) texels; x runs along s and y runs *down* t (image rows), so the
 //! surface point of offset (dx, dy) is `v + texel·(dx·s − dy·t)`.
 
+use super::flatten::{barycentric, flatten, slot, Patch, Topology};
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::frames::Frames;
-use crate::mesh::topology::{edge_incidences, one_rings, VertexRings};
 use crate::mesh::Mesh;
 use crate::{Error, Result};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use std::collections::VecDeque;
-use std::f32::consts::TAU;
-
-/// No face across this edge (a boundary, or a non-manifold edge, where flattening stops).
-const NO_FACE: u32 = u32::MAX;
-
-/// Barycentric weights may dip this far below 0 for a pixel on an edge or corner.
-const INSIDE_TOLERANCE: f32 = 1e-5;
 
 /// Offsets within this many texels of the template's edge still count as inside it.
 const SQUARE_TOLERANCE: f32 = 1e-3;
@@ -76,231 +68,6 @@ fn check_frames(mesh: &Mesh, frames: &Frames, name: &str) -> Result<()> {
     Ok(())
 }
 
-/// What flattening needs of the connectivity, built once per mesh.
-pub(super) struct Topology {
-    rings: VertexRings,
-    /// CSR: the faces around vertex v are `vertex_faces[face_start[v]..face_start[v + 1]]`.
-    face_start: Vec<usize>,
-    vertex_faces: Vec<u32>,
-    /// Per face, the face across edge k (corners k → k + 1), or [`NO_FACE`].
-    across: Vec<[u32; 3]>,
-}
-
-impl Topology {
-    pub(super) fn new(mesh: &Mesh) -> Topology {
-        let triangles = mesh.triangles();
-        let mut face_start = vec![0usize; mesh.vertex_count() + 1];
-        for t in triangles {
-            for &c in t {
-                face_start[c as usize + 1] += 1;
-            }
-        }
-        for v in 0..mesh.vertex_count() {
-            face_start[v + 1] += face_start[v];
-        }
-        let mut fill = face_start.clone();
-        let mut vertex_faces = vec![0u32; face_start[mesh.vertex_count()]];
-        for (f, t) in triangles.iter().enumerate() {
-            for &c in t {
-                vertex_faces[fill[c as usize]] = f as u32;
-                fill[c as usize] += 1;
-            }
-        }
-        Topology { rings: one_rings(mesh), face_start, vertex_faces, across: across(triangles) }
-    }
-
-    fn faces_of(&self, v: u32) -> &[u32] {
-        &self.vertex_faces[self.face_start[v as usize]..self.face_start[v as usize + 1]]
-    }
-}
-
-/// Face adjacency across edges; an edge with other than two faces joins nothing.
-fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    let mut out = vec![[NO_FACE; 3]; triangles.len()];
-    let edge_of = |f: u32, lo: u32, hi: u32| {
-        let t = triangles[f as usize];
-        (0..3).find(|&k| t[k].min(t[(k + 1) % 3]) == lo && t[k].max(t[(k + 1) % 3]) == hi).unwrap_or(0)
-    };
-    for group in edge_incidences(triangles).chunk_by(|a, b| a.key() == b.key()) {
-        if let [a, b] = group {
-            out[a.face as usize][edge_of(a.face, a.lo, a.hi)] = b.face;
-            out[b.face as usize][edge_of(b.face, b.lo, b.hi)] = a.face;
-        }
-    }
-    out
-}
-
-/// A flattened patch around one vertex, in (s, t) coordinates with the vertex at 0. One is
-/// reused for every vertex a thread flattens: per-mesh arrays stamped with the patch's
-/// generation stand in for maps and sets (hashing was most of the templates' time).
-pub(super) struct Patch {
-    /// Faces in the order they were reached (the vertex's own faces first).
-    pub(super) faces: Vec<u32>,
-    /// Vertices in the order they were placed (the centre first).
-    order: Vec<u32>,
-    generation: u32,
-    /// Per mesh vertex: the generation that placed it, and where.
-    placed: Vec<u32>,
-    uv: Vec<Vec2>,
-    /// Per mesh face: the generation that reached it.
-    reached: Vec<u32>,
-}
-
-impl Patch {
-    pub(super) fn new(mesh: &Mesh) -> Self {
-        Patch {
-            faces: Vec::new(),
-            order: Vec::new(),
-            generation: 0,
-            placed: vec![0; mesh.vertex_count()],
-            uv: vec![Vec2::ZERO; mesh.vertex_count()],
-            reached: vec![0; mesh.face_count()],
-        }
-    }
-
-    /// Empties the patch for the next vertex.
-    fn restart(&mut self) {
-        self.faces.clear();
-        self.order.clear();
-        self.generation += 1;
-    }
-
-    fn uv_of(&self, vertex: u32) -> Option<Vec2> {
-        (self.placed[vertex as usize] == self.generation).then(|| self.uv[vertex as usize])
-    }
-
-    pub(super) fn corners(&self, mesh: &Mesh, f: u32) -> Option<[Vec2; 3]> {
-        let t = mesh.triangles()[f as usize];
-        Some([self.uv_of(t[0])?, self.uv_of(t[1])?, self.uv_of(t[2])?])
-    }
-
-    fn place(&mut self, vertex: u32, at: Vec2) {
-        // A vertex reached twice (around a cone or a handle) keeps its first placement.
-        if self.placed[vertex as usize] != self.generation {
-            self.placed[vertex as usize] = self.generation;
-            self.uv[vertex as usize] = at;
-            self.order.push(vertex);
-        }
-    }
-
-    /// Marks face `f` reached; false if it already was.
-    fn reach(&mut self, f: u32) -> bool {
-        let first = self.reached[f as usize] != self.generation;
-        self.reached[f as usize] = self.generation;
-        first
-    }
-}
-
-/// Flattens the triangles around `v` into `patch` (Tong §5.1 after Turk / Wei-Levoy): the
-/// one-ring by a discrete exponential map, then breadth-first across shared edges, each new
-/// vertex placed rigidly against the edge it was reached over, until the triangles lie
-/// beyond `reach` (plus one edge) of `v`.
-pub(super) fn flatten(
-    mesh: &Mesh,
-    frames: &Frames,
-    topology: &Topology,
-    v: u32,
-    reach: f32,
-    patch: &mut Patch,
-) {
-    patch.restart();
-    patch.place(v, Vec2::ZERO);
-    unfold_ring(mesh, frames, topology, v, patch);
-    let mut queue: VecDeque<u32> = VecDeque::new();
-    for &f in topology.faces_of(v) {
-        if patch.corners(mesh, f).is_some() && patch.reach(f) {
-            queue.push_back(f);
-        }
-    }
-    while let Some(f) = queue.pop_front() {
-        patch.faces.push(f);
-        let Some(corners) = patch.corners(mesh, f) else { continue };
-        if !within_reach(&corners, reach) || !within_reach_in_space(mesh, f, v, reach) {
-            continue;
-        }
-        for &g in &topology.across[f as usize] {
-            if g != NO_FACE && patch.reach(g) {
-                place_apex(mesh, g, patch);
-                queue.push_back(g);
-            }
-        }
-    }
-}
-
-/// Whether a flattened triangle may still reach into the template, so that its
-/// neighbours are worth flattening too.
-fn within_reach(corners: &[Vec2; 3], reach: f32) -> bool {
-    let nearest = corners.iter().map(|c| c.length()).fold(f32::INFINITY, f32::min);
-    let longest = (0..3).map(|k| corners[k].distance(corners[(k + 1) % 3])).fold(0.0, f32::max);
-    nearest <= reach + longest
-}
-
-/// Whether face `f` may still reach into the template measured in space: a straight line
-/// is never longer than a path on the surface, so a face beyond reach in space is beyond
-/// it on the surface too, however the flattening (which closes loops inconsistently around
-/// cones and handles) has placed it.
-fn within_reach_in_space(mesh: &Mesh, f: u32, v: u32, reach: f32) -> bool {
-    let p = mesh.positions();
-    let t = mesh.triangles()[f as usize].map(|c| p[c as usize]);
-    let nearest = t.iter().map(|c| c.distance(p[v as usize])).fold(f32::INFINITY, f32::min);
-    let longest = (0..3).map(|k| t[k].distance(t[(k + 1) % 3])).fold(0.0, f32::max);
-    nearest <= reach + longest
-}
-
-/// Places the one-ring of `v`: each neighbour at its true distance, the angles between
-/// neighbours scaled to sum to 2π (to at most 2π on a boundary, leaving an open fan), the
-/// first neighbour at its angle from s in the tangent plane.
-fn unfold_ring(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, patch: &mut Patch) {
-    let ring = topology.rings.ring(v as usize);
-    let p = mesh.positions();
-    let centre = p[v as usize];
-    let Some(&first) = ring.first() else { return };
-    // A closed fan of m neighbours has m faces, an open one m − 1.
-    let closed = topology.faces_of(v).len() == ring.len() && ring.len() > 2;
-    let gaps = if closed { ring.len() } else { ring.len() - 1 };
-    let angles: Vec<f32> = (0..gaps)
-        .map(|k| {
-            (p[ring[k] as usize] - centre).angle_between(p[ring[(k + 1) % ring.len()] as usize] - centre)
-        })
-        // A zero-length edge has no angle; it then takes no room in the fan.
-        .map(|a| if a.is_finite() { a } else { 0.0 })
-        .collect();
-    let total: f32 = angles.iter().sum();
-    let scale = if closed || total > TAU { TAU / total.max(f32::EPSILON) } else { 1.0 };
-    let (s, t) = (frames.s[v as usize], frames.t[v as usize]);
-    let d = p[first as usize] - centre;
-    let mut angle = d.dot(t).atan2(d.dot(s));
-    for (k, &u) in ring.iter().enumerate() {
-        if k > 0 {
-            angle += angles[k - 1] * scale;
-        }
-        let length = (p[u as usize] - centre).length();
-        patch.place(u, Vec2::from_angle(angle) * length);
-    }
-}
-
-/// Places the one unplaced corner of face `g` (if any) against its opposite edge a → b:
-/// at its true distance from a and its true angle at a, on the side that keeps the face
-/// counter-clockwise. Anchoring at a (rather than intersecting circles around a and b)
-/// stays well-defined when a and b were placed by different routes and the flat edge no
-/// longer has its length; where it does, this is the rigid placement.
-fn place_apex(mesh: &Mesh, g: u32, patch: &mut Patch) {
-    let t = mesh.triangles()[g as usize];
-    let p = mesh.positions();
-    for k in 0..3 {
-        let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-        if patch.uv_of(c).is_some() {
-            continue;
-        }
-        let (Some(pa), Some(pb)) = (patch.uv_of(a), patch.uv_of(b)) else { continue };
-        let (ab, ac) = (p[b as usize] - p[a as usize], p[c as usize] - p[a as usize]);
-        let direction = (pb - pa).try_normalize().unwrap_or(Vec2::X);
-        let turn = Vec2::from_angle(ab.angle_between(ac));
-        patch.place(c, pa + direction.rotate(turn) * ac.length());
-        return;
-    }
-}
-
 /// The template of `v` resampled from its patch: each pixel takes the barycentric
 /// coordinates of the first patch face (in breadth-first order, so the least distorted)
 /// that contains it, or the default texton.
@@ -334,33 +101,6 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize) -> Vec<Slo
         slots[r * side + r] = Slot::at(v);
     }
     slots
-}
-
-/// Barycentric weights of `q` in triangle `t`, if it lies inside (weights clamped to ≥ 0
-/// and renormalised); `None` outside or for a degenerate triangle.
-pub(super) fn barycentric(q: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
-    let area = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-    // NaN too: a patch vertex at NaN (from a zero-length edge) yields no slot.
-    if area.is_nan() || area.abs() <= 1e-9 {
-        return None;
-    }
-    let w1 = (q - t[0]).perp_dot(t[2] - t[0]) / area;
-    let w2 = (t[1] - t[0]).perp_dot(q - t[0]) / area;
-    let w = [1.0 - w1 - w2, w1, w2];
-    if w.iter().any(|&x| x < -INSIDE_TOLERANCE) {
-        return None;
-    }
-    let w = w.map(|x| x.max(0.0));
-    let sum: f32 = w.iter().sum();
-    Some(w.map(|x| x / sum))
-}
-
-/// A slot from a face and weights; a pixel on a vertex becomes [`Slot::at`], as on a grid.
-pub(super) fn slot(face: [u32; 3], weights: [f32; 3]) -> Slot {
-    match weights.iter().position(|&w| w >= 1.0 - INSIDE_TOLERANCE) {
-        Some(k) => Slot::at(face[k]),
-        None => Slot { vertices: face, weights },
-    }
 }
 
 /// The patch vertices inside the template's square with their offsets in texels (the

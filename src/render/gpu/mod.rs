@@ -14,7 +14,7 @@ pub mod pipeline;
 pub mod readback;
 
 use super::ambient::{self, AmbientCache};
-use super::cpu::Tracer;
+use super::tracer::Tracer;
 use super::{Blend16, Camera, Environment, Frame, Material, Mode, Scene, Shot};
 use crate::Result;
 use context::Gpu;
