@@ -200,7 +200,7 @@ mod tests {
     }
 
     #[test]
-    fn the_decoded_peak_counts_the_whole_stack_only_when_representatives_are_chosen() {
+    fn the_analysis_peak_counts_the_whole_stack_twice_only_when_representatives_are_chosen() {
         let params = AnalysisParams::default();
         // The UBO2014 case of issue #21, killed by the kernel at 24.3 GB: a 192² crop of
         // 22,801 images holds them as f16 and, for the selection, as f32 rows twice.
@@ -214,8 +214,15 @@ mod tests {
     }
 
     #[test]
-    fn no_figure_from_the_platform_means_no_refusal() {
-        let stage = Stage { name: "anything".into(), bytes: u64::MAX };
-        assert!(check_against(Path::new("big.btf"), "analysing it", &stage, "use --crop", None).is_ok());
+    fn an_analysis_beyond_the_budget_is_refused_naming_the_stack() {
+        let (path, advice) = (Path::new("big.btf"), "analyse a part with --crop x,y,w,h");
+        let budget = || Some((8u64 << 30, "80% of the 10.0 GiB available".to_string()));
+        let stage = |bytes: u64| Stage { name: "textons of level 0 (400x400)".into(), bytes };
+        let e =
+            check_against(path, "analysing it", &stage(20 << 30), advice, budget()).unwrap_err().to_string();
+        assert!(e.contains("big.btf") && e.contains("20.0 GiB") && e.contains("--crop"), "{e}");
+        assert!(check_against(path, "analysing it", &stage(4 << 30), advice, budget()).is_ok());
+        let no_figure = check_against(path, "analysing it", &stage(u64::MAX), advice, None);
+        assert!(no_figure.is_ok(), "no figure from the platform: no refusal");
     }
 }
