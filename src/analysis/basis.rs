@@ -95,6 +95,256 @@ pub fn principal_images(images: ArrayView2<f32>, options: &BasisOptions) -> Resu
     Ok(PrincipalImages { mean, components, sigma, coords, energy: energy.min(1.0) })
 }
 
+/// A stack known as a product of low rank: image `a` is `offset + coords[a] · rows`, exactly
+/// (the factors of a DFMF file whose decoding is linear) or up to the energy `outside` the
+/// rows' span (a basis streamed from the images, [`streamed_basis`]).
+///
+/// The principal images of any subset of its images follow from q × q matrices
+/// ([`principal_images_low_rank`]), and the stack moves down an image pyramid by
+/// downsampling its q rows instead of every image ([`LowRankStack::map_rows`]): the
+/// analysis of a 22,801-image material then touches q + 1 images' worth of values.
+#[derive(Clone, Debug)]
+pub struct LowRankStack {
+    /// D values (interleaved RGB).
+    pub offset: Array1<f32>,
+    /// n × q.
+    pub coords: Array2<f32>,
+    /// q × D; need not be orthonormal or independent.
+    pub rows: Array2<f32>,
+    /// Σₐ ‖image a − its value here‖², where known (0 for exact factors).
+    pub outside: f64,
+}
+
+impl LowRankStack {
+    /// Number of images.
+    pub fn len(&self) -> usize {
+        self.coords.nrows()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.coords.nrows() == 0
+    }
+
+    /// Rank of the representation (rows).
+    pub fn rank(&self) -> usize {
+        self.rows.nrows()
+    }
+
+    /// The images `images` (in that order) of the stack; the rows move, not copy.
+    pub fn select(self, images: &[usize]) -> LowRankStack {
+        let coords = self.coords.select(Axis(0), images);
+        // The energy outside the span is not known per image: keep the share of the images.
+        let share = images.len() as f64 / self.coords.nrows().max(1) as f64;
+        LowRankStack { coords, outside: self.outside * share, ..self }
+    }
+
+    /// Applies a linear map of images (e.g. a pyramid's downsampling) to the stack: to
+    /// the offset and to every row, in parallel; the coordinates stay. The energy outside
+    /// the rows' span cannot be mapped without the images: it is scaled by the ratio the
+    /// centred energy inside the span changed by (an estimate; exact stacks have none).
+    pub fn map_rows(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
+        let before = if self.outside > 0.0 { self.inside_energy() } else { 0.0 };
+        let mut mapped = self.map_rows_only(f);
+        if mapped.outside > 0.0 {
+            let after = mapped.inside_energy();
+            mapped.outside *= if before > 0.0 { after / before } else { 0.0 };
+        }
+        mapped
+    }
+
+    /// Σₐ ‖(coords[a] − mean coords) · rows‖², the centred energy the stack represents.
+    fn inside_energy(&self) -> f64 {
+        let coords = self.coords.mapv(|v| v as f64);
+        let cbar = coords.mean_axis(Axis(0)).unwrap_or_else(|| Array1::zeros(coords.ncols()));
+        let centred = &coords - &cbar;
+        let g = gram_f64(self.rows.view());
+        (centred.dot(&g) * &centred).sum()
+    }
+
+    fn map_rows_only(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
+        use rayon::prelude::*;
+        let mapped: Vec<Vec<f32>> = (0..self.rows.nrows())
+            .into_par_iter()
+            .map(|k| match self.rows.row(k).as_slice() {
+                Some(row) => f(row),
+                None => f(&self.rows.row(k).to_vec()),
+            })
+            .collect();
+        let offset = Array1::from_vec(f(&self.offset.to_vec()));
+        let d = offset.len();
+        let mut rows = Array2::zeros((mapped.len(), d));
+        for (mut dst, src) in rows.rows_mut().into_iter().zip(&mapped) {
+            dst.assign(&ndarray::ArrayView1::from(src.as_slice()));
+        }
+        LowRankStack { offset, rows, ..self }
+    }
+
+    /// Image `a` (D values).
+    pub fn image(&self, a: usize) -> Array1<f32> {
+        self.coords.row(a).dot(&self.rows) + &self.offset
+    }
+}
+
+/// The principal images of a low-rank stack (see [`LowRankStack`]), the same as
+/// [`principal_images`] of its images multiplied out, up to rounding (and the randomized
+/// range finder that `principal_images` uses above `options.exact_limit` images, which
+/// this needs not: it is exact at any image count).
+///
+/// With G = R Rᵀ = V Λ Vᵀ for the rows R, Q = Λ^-½ Vᵀ R has orthonormal rows and the
+/// centred images are C Q with C = (coords − mean) V Λ^½; the eigenvectors W of CᵀC give
+/// the components Wᵀ Q and the coordinates C W.
+pub fn principal_images_low_rank(stack: &LowRankStack, options: &BasisOptions) -> Result<PrincipalImages> {
+    let (n, d) = (stack.coords.nrows(), stack.rows.ncols());
+    if n == 0 || d == 0 || stack.offset.len() != d || stack.coords.ncols() != stack.rows.nrows() {
+        return Err(Error::invalid("principal images of an empty or inconsistent low-rank stack"));
+    }
+    let coords = stack.coords.mapv(|v| v as f64);
+    let cbar = coords.mean_axis(Axis(0)).unwrap_or_else(|| Array1::zeros(coords.ncols()));
+    let mean = cbar.mapv(|v| v as f32).dot(&stack.rows) + &stack.offset;
+    let centred = &coords - &cbar;
+    let (v, g) = leading_eigenvectors_f64(&gram_f64(stack.rows.view()));
+    let largest = g.first().copied().unwrap_or(0.0);
+    let m = g.iter().take_while(|&&x| x > largest * 1e-12 && x > 0.0).count();
+    let to_orthonormal = Array2::from_shape_fn((v.nrows(), m), |(i, j)| v[[i, j]] * g[j].sqrt());
+    let c = centred.dot(&to_orthonormal);
+    let (w, lambda) = leading_eigenvectors_f64(&c.t().dot(&c));
+    let inside: f64 = lambda.iter().sum();
+    let total = inside + stack.outside.max(0.0);
+    if inside <= 0.0 || m == 0 {
+        return Ok(PrincipalImages {
+            mean,
+            components: Array2::zeros((0, d)),
+            sigma: vec![],
+            coords: Array2::zeros((n, 0)),
+            energy: 1.0,
+        });
+    }
+    let rank = kept_rank(&lambda, total, options);
+    let w = w.slice(s![.., ..rank]).to_owned();
+    // Components: Wᵀ Λ^-½ Vᵀ R, as one (rank × q) matrix times the rows.
+    let from_rows = Array2::from_shape_fn((m, v.nrows()), |(j, i)| v[[i, j]] / g[j].sqrt());
+    let coefficients = w.t().dot(&from_rows).mapv(|x| x as f32);
+    let components = coefficients.dot(&stack.rows);
+    let coords = c.dot(&w).mapv(|x| x as f32);
+    let sigma: Vec<f32> = lambda[..rank].iter().map(|l| l.sqrt() as f32).collect();
+    let energy = lambda[..rank].iter().sum::<f64>() / total;
+    Ok(PrincipalImages { mean, components, sigma, coords, energy: energy.min(1.0) })
+}
+
+/// R Rᵀ in f64, a block of columns at a time.
+fn gram_f64(rows: ArrayView2<f32>) -> Array2<f64> {
+    let q = rows.nrows();
+    let mut g = Array2::<f64>::zeros((q, q));
+    for start in (0..rows.ncols()).step_by(4096) {
+        let end = (start + 4096).min(rows.ncols());
+        let block = rows.slice(s![.., start..end]).mapv(|v| v as f64);
+        g += &block.dot(&block.t());
+    }
+    g
+}
+
+/// Eigenvectors (columns) and eigenvalues of a symmetric f64 matrix, decreasing, ≥ 0.
+fn leading_eigenvectors_f64(m: &Array2<f64>) -> (Array2<f64>, Vec<f64>) {
+    let n = m.nrows();
+    let eigen =
+        nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| 0.5 * (m[[i, j]] + m[[j, i]])).symmetric_eigen();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let vectors = Array2::from_shape_fn((n, n), |(i, c)| eigen.eigenvectors[(i, order[c])]);
+    (vectors, order.iter().map(|&k| eigen.eigenvalues[k].max(0.0)).collect())
+}
+
+/// How [`streamed_basis`] reads a stack.
+#[derive(Clone, Copy, Debug)]
+pub struct StreamOptions {
+    /// Columns of the sketch: the rank of the result (default 96: the selection's 64
+    /// components plus 32 of oversampling, since there is no power iteration).
+    pub rank: usize,
+    /// Images decoded at a time (default 32).
+    pub batch: usize,
+    /// Seed of the Gaussian test matrix.
+    pub seed: u64,
+}
+
+impl Default for StreamOptions {
+    fn default() -> Self {
+        StreamOptions { rank: 96, batch: 32, seed: 0 }
+    }
+}
+
+/// A low-rank basis of a stack that is never held in memory: a randomized range finder
+/// (Halko, Martinsson and Tropp 2011, §4.1 with the sketch on the image side) in two
+/// passes over batches of decoded images. Pass 1 sums the images and the sketch
+/// Y = Σₐ xₐ ωₐᵀ (D × l, ω Gaussian), centred after the pass; Q = orth(Y). Pass 2 projects
+/// every centred image on Q and measures what Q misses. Memory: D × l values (twice, in
+/// f64, while orthonormalising) plus one batch; time: two decodings of the stack.
+pub fn streamed_basis(
+    source: &dyn crate::btf::ImageSource,
+    options: &StreamOptions,
+    progress: &dyn crate::progress::Progress,
+) -> Result<LowRankStack> {
+    let n = source.pairs().len();
+    let d = source.width() * source.height() * 3;
+    if n == 0 || d == 0 {
+        return Err(Error::invalid("a streamed basis of an empty stack"));
+    }
+    let l = options.rank.min(n).min(d).max(1);
+    let batch = options.batch.max(1);
+    let omega = |a: usize, j: usize| normal(options.seed, a as i64, j as i64);
+    let mut sum = Array1::<f64>::zeros(d);
+    let mut sketch = Array2::<f32>::zeros((d, l));
+    progress.start("basis: sketching the images", n as u64);
+    for start in (0..n).step_by(batch) {
+        let block = start..(start + batch).min(n);
+        let x = decode_rows(source, block.clone())?;
+        for row in x.rows() {
+            sum.iter_mut().zip(row).for_each(|(s, &v)| *s += v as f64);
+        }
+        let w = Array2::from_shape_fn((block.len(), l), |(a, j)| omega(block.start + a, j));
+        ndarray::linalg::general_mat_mul(1.0, &x.t(), &w, 1.0, &mut sketch);
+        progress.advance(block.len() as u64);
+    }
+    progress.finish();
+    let mean = sum.mapv(|s| (s / n as f64) as f32);
+    // Centre: Σₐ (xₐ − m) ωₐᵀ = Y − m (Σₐ ωₐ)ᵀ.
+    let omega_sum: Vec<f32> =
+        (0..l).map(|j| (0..n).map(|a| omega(a, j) as f64).sum::<f64>() as f32).collect();
+    for (mut row, &m) in sketch.rows_mut().into_iter().zip(&mean) {
+        row.iter_mut().zip(&omega_sum).for_each(|(y, &o)| *y -= m * o);
+    }
+    let q = orthonormal_columns(sketch);
+    let mut coords = Array2::<f32>::zeros((n, l));
+    let (mut total, mut captured) = (0f64, 0f64);
+    progress.start("basis: projecting the images", n as u64);
+    for start in (0..n).step_by(batch) {
+        let block = start..(start + batch).min(n);
+        let mut x = decode_rows(source, block.clone())?;
+        x -= &mean;
+        total += x.iter().map(|&v| v as f64 * v as f64).sum::<f64>();
+        let b = x.dot(&q);
+        captured += b.iter().map(|&v| v as f64 * v as f64).sum::<f64>();
+        coords.slice_mut(s![block, ..]).assign(&b);
+        progress.advance(b.nrows() as u64);
+    }
+    progress.finish();
+    Ok(LowRankStack { offset: mean, coords, rows: q.reversed_axes(), outside: (total - captured).max(0.0) })
+}
+
+/// The images of `block` decoded, one per row, in f32.
+fn decode_rows(source: &dyn crate::btf::ImageSource, block: std::ops::Range<usize>) -> Result<Array2<f32>> {
+    use rayon::prelude::*;
+    let d = source.width() * source.height() * 3;
+    let mut rows = Array2::<f32>::zeros((block.len(), d));
+    let flat = rows.as_slice_mut().ok_or_else(|| Error::invalid("batch buffer is not contiguous"))?;
+    flat.par_chunks_mut(d).zip(block.into_par_iter()).try_for_each(|(out, i)| {
+        let mut image = vec![half::f16::ZERO; d];
+        source.decode_image(i, &mut image)?;
+        out.iter_mut().zip(&image).for_each(|(o, v)| *o = v.to_f32());
+        Ok::<(), Error>(())
+    })?;
+    Ok(rows)
+}
+
 /// Components to keep: enough for `energy` of `total`, at most `max_rank`, none that is
 /// numerically zero.
 fn kept_rank(lambda: &[f64], total: f64, options: &BasisOptions) -> usize {
@@ -201,6 +451,83 @@ mod tests {
         blocks.extend(basis.components.rows().into_iter().map(|c| c.dot(&f)));
         let via_basis: f32 = blocks.iter().zip(&weights).map(|(b, w)| w * w * b.dot(b)).sum();
         assert!((direct - via_basis).abs() < 1e-3 * direct, "{direct} vs {via_basis}");
+    }
+
+    /// The stack of `low_rank_stack` as factors: coords (n × rank) and rows (rank + 1 × P),
+    /// the last row the offset with coordinate 1 (and the offset field zero).
+    fn as_low_rank(n: usize, pixels: usize, rank: usize) -> LowRankStack {
+        let patterns = Array2::from_shape_fn((rank, pixels), |(k, p)| normal(1, k as i64, p as i64));
+        let weights =
+            Array2::from_shape_fn((n, rank), |(a, k)| normal(2, a as i64, k as i64) * (rank - k) as f32);
+        let mut rows = Array2::from_elem((rank + 1, pixels), 0.5f32);
+        rows.slice_mut(s![..rank, ..]).assign(&patterns);
+        let mut coords = Array2::from_elem((n, rank + 1), 1.0f32);
+        coords.slice_mut(s![.., ..rank]).assign(&weights);
+        LowRankStack { offset: Array1::zeros(pixels), coords, rows, outside: 0.0 }
+    }
+
+    #[test]
+    fn low_rank_principal_images_equal_those_of_the_multiplied_out_stack() {
+        for n in [60, 1500] {
+            let images = low_rank_stack(n, 300, 5);
+            let stack = as_low_rank(n, 300, 5);
+            let multiplied = stack.coords.dot(&stack.rows) + &stack.offset;
+            assert!((&multiplied - &images).iter().all(|v| v.abs() < 1e-4));
+            let direct = principal_images(images.view(), &BasisOptions::default()).unwrap();
+            let low = principal_images_low_rank(&stack, &BasisOptions::default()).unwrap();
+            assert_eq!(low.sigma.len(), 5);
+            check_reconstruction(&images, &low);
+            for (a, b) in direct.sigma.iter().zip(&low.sigma) {
+                assert!((a - b).abs() < 1e-3 * a, "n = {n}: {a} vs {b}");
+            }
+            let err = (&direct.mean - &low.mean).iter().map(|v| v.abs()).fold(0.0f32, f32::max);
+            assert!(err < 1e-4, "mean differs by {err}");
+            // The same subspace: each direct component lies in the span of the low-rank ones.
+            let projected = low.components.dot(&direct.components.t());
+            for k in 0..5 {
+                let norm: f32 = projected.column(k).iter().map(|v| v * v).sum();
+                assert!((norm - 1.0).abs() < 1e-3, "component {k}: {norm}");
+            }
+            assert!((low.energy - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn a_subset_and_a_linear_map_of_a_low_rank_stack_stay_exact() {
+        let stack = as_low_rank(40, 64, 3);
+        let images = stack.coords.dot(&stack.rows);
+        let picked = [3usize, 7, 8, 30];
+        let halve = |row: &[f32]| row.chunks(2).map(|c| 0.5 * (c[0] + c[1])).collect::<Vec<f32>>();
+        let small = stack.select(&picked).map_rows(halve);
+        assert_eq!(small.rows.dim(), (4, 32));
+        for (k, &a) in picked.iter().enumerate() {
+            let want = halve(images.row(a).as_slice().unwrap());
+            let got = small.image(k);
+            for (x, y) in want.iter().zip(got.iter()) {
+                assert!((x - y).abs() < 1e-4, "{x} vs {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_streamed_basis_captures_a_low_rank_stack_in_two_passes() {
+        use crate::btf::{Btf, DirectionSet};
+        // 81 images of 8×6 RGB: a mean plus 4 patterns, stored as f16.
+        let pairs = DirectionSet::Grid(9).pairs();
+        let images = low_rank_stack(pairs.len(), 8 * 6 * 3, 4);
+        let pixels = images.iter().map(|&v| half::f16::from_f32(v)).collect();
+        let btf = Btf::new(8, 6, pairs, pixels).unwrap();
+        let options = StreamOptions { rank: 12, batch: 10, seed: 3 };
+        let stack = streamed_basis(&btf, &options, &crate::progress::Silent).unwrap();
+        assert_eq!((stack.len(), stack.rank()), (81, 12));
+        let rebuilt = stack.coords.dot(&stack.rows) + &stack.offset;
+        let err = (&rebuilt - &images).iter().map(|v| v.abs()).fold(0.0f32, f32::max);
+        assert!(err < 1e-2, "reconstruction error {err}");
+        let total: f64 =
+            (&images - &images.mean_axis(Axis(0)).unwrap()).iter().map(|&v| v as f64 * v as f64).sum();
+        assert!(stack.outside < 1e-5 * total, "outside {} of {total}", stack.outside);
+        let basis = principal_images_low_rank(&stack, &BasisOptions::default()).unwrap();
+        assert_eq!(basis.sigma.len(), 4);
     }
 
     #[test]

@@ -41,16 +41,23 @@ pub fn texton_features(
     let weights = basis.block_weights();
     let blocks: Vec<ArrayView1<f32>> =
         std::iter::once(basis.mean.view()).chain(basis.components.rows()).collect();
-    let responses: Vec<Array2<f32>> = blocks
-        .par_iter()
-        .map(|image| rgb_responses(*image, width, height, convolver, padding))
-        .collect::<Result<_>>()?;
     let per_block = 3 * convolver.bank().len();
     let mut features = Array2::zeros((width * height, blocks.len() * per_block));
-    for (b, (r, w)) in responses.iter().zip(&weights).enumerate() {
-        features
-            .slice_mut(ndarray::s![.., b * per_block..(b + 1) * per_block])
-            .assign(&(r.t().to_owned() * *w));
+    // A few blocks at a time (as many as threads), so that the responses waiting to be
+    // copied stay a few blocks' worth rather than a second copy of the features.
+    let group = rayon::current_num_threads().max(1);
+    for first in (0..blocks.len()).step_by(group) {
+        let last = (first + group).min(blocks.len());
+        let responses: Vec<Array2<f32>> = blocks[first..last]
+            .par_iter()
+            .map(|image| rgb_responses(*image, width, height, convolver, padding))
+            .collect::<Result<_>>()?;
+        for (b, r) in (first..last).zip(&responses) {
+            let w = weights[b];
+            features
+                .slice_mut(ndarray::s![.., b * per_block..(b + 1) * per_block])
+                .zip_mut_with(&r.t(), |dst, &src| *dst = src * w);
+        }
     }
     Ok(features)
 }

@@ -2,6 +2,7 @@
 //! few view/light pairs a result is shown and judged under.
 
 use super::npy;
+use crate::btf::factored::FactoredStack;
 use crate::eval::Picture;
 use crate::{Error, Result};
 use half::f16;
@@ -12,10 +13,17 @@ use std::path::Path;
 pub struct SampleImages {
     pub width: usize,
     pub height: usize,
-    /// `[n][h][w][3]` linear RGB.
-    pixels: Vec<f16>,
+    values: Values,
     /// Per image: θ_light, φ_light, θ_view, φ_view in degrees.
     directions: Vec<[f32; 4]>,
+}
+
+/// Where the values come from.
+enum Values {
+    /// `[n][h][w][3]` linear RGB (`images.npy`).
+    Pixels(Vec<f16>),
+    /// The sample's factors: each value a K-term product per channel, decoded when asked.
+    Factors(Box<FactoredStack>),
 }
 
 /// One view/light pair to show a result under: its image and a name for files and tables.
@@ -46,6 +54,23 @@ impl Probe {
 impl SampleImages {
     /// Reads the images and directions of the analysis in `dir`.
     pub fn open(dir: &Path) -> Result<Self> {
+        if !dir.join("images.npy").exists() {
+            let manifest = super::store::read_manifest(dir)?;
+            if manifest.sample.is_some() {
+                let f = super::store::read_factors(dir, &manifest)?;
+                let directions = f
+                    .pairs()
+                    .iter()
+                    .map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi])
+                    .collect();
+                return Ok(SampleImages {
+                    width: f.width(),
+                    height: f.height(),
+                    values: Values::Factors(Box::new(f)),
+                    directions,
+                });
+            }
+        }
         let images: npy::NpyArray<f16> = npy::read(&dir.join("images.npy"))?;
         let directions: npy::NpyArray<f32> = npy::read(&dir.join("directions.npy"))?;
         let [n, h, w, 3] = images.shape[..] else {
@@ -57,7 +82,7 @@ impl SampleImages {
         crate::btf::directions::pairs_from_rows(&directions.data)
             .map_err(|m| Error::format(dir.join("directions.npy"), m))?;
         let directions = directions.data.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
-        Ok(SampleImages { width: w, height: h, pixels: images.data, directions })
+        Ok(SampleImages { width: w, height: h, values: Values::Pixels(images.data), directions })
     }
 
     pub fn len(&self) -> usize {
@@ -71,8 +96,18 @@ impl SampleImages {
     /// Linear RGB of image `i` at texel (x, y) (which must lie inside).
     #[inline]
     pub fn rgb(&self, i: usize, x: usize, y: usize) -> [f32; 3] {
-        let o = ((i * self.height + y) * self.width + x) * 3;
-        [self.pixels[o].to_f32(), self.pixels[o + 1].to_f32(), self.pixels[o + 2].to_f32()]
+        match &self.values {
+            Values::Pixels(pixels) => {
+                let o = ((i * self.height + y) * self.width + x) * 3;
+                [pixels[o].to_f32(), pixels[o + 1].to_f32(), pixels[o + 2].to_f32()]
+            }
+            Values::Factors(f) => f.rgb(i, y * self.width + x),
+        }
+    }
+
+    /// Whether the values are computed from factors rather than read from images.
+    pub fn is_factored(&self) -> bool {
+        matches!(self.values, Values::Factors(_))
     }
 
     /// Image `i` as a picture.
@@ -152,7 +187,7 @@ mod tests {
 
     fn images(directions: Vec<[f32; 4]>) -> SampleImages {
         let n = directions.len();
-        SampleImages { width: 2, height: 2, pixels: vec![f16::ZERO; n * 12], directions }
+        SampleImages { width: 2, height: 2, values: Values::Pixels(vec![f16::ZERO; n * 12]), directions }
     }
 
     #[test]

@@ -1,12 +1,13 @@
 //! `analyze`: a BTF stack in, the texton pyramid with its kNN lists out.
 
+use super::basis::{principal_images_low_rank, LowRankStack};
 use super::convolve::{BankConvolver, Padding};
 use super::filters::FilterBank;
 use super::gamma::distance_table;
 use super::knn::{single_level_lists, two_level_lists, KnnParams, Level};
 use super::pyramid::{downsample, level_sizes};
-use super::select::representatives;
-use super::textons::{level_textons, LevelTextons, TextonOptions};
+use super::select::{representatives, representatives_from_basis, selection_basis_options};
+use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
 use crate::btf::Btf;
 use crate::progress::Progress;
 use crate::{Error, Result};
@@ -178,6 +179,81 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
         timings.gamma += textons.timings.gamma;
         levels.push(textons);
     }
+
+    let knn_started = Instant::now();
+    let analysed = knn_lists(levels, params, progress);
+    timings.knn = knn_started.elapsed();
+    timings.total = started.elapsed();
+    Ok(Analysis { params: params.clone(), selected, levels: analysed, timings })
+}
+
+/// Analyses a stack held as a product of low rank (the factors of a DFMF file, or a basis
+/// streamed from images): the same stages as [`analyze`], with every image replaced by its
+/// coordinates. The representative selection clusters the coordinates of all images
+/// through the exact principal images of the whole stack; each level takes the principal
+/// images of the selected images from q × q matrices and moves down the pyramid by
+/// downsampling the q rows. Memory and time grow with texels × rank, not texels × images.
+pub fn analyze_low_rank(
+    stack: LowRankStack,
+    (width, height): (usize, usize),
+    params: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Result<Analysis> {
+    params.validate(width, height)?;
+    if stack.rows.ncols() != width * height * 3 {
+        return Err(Error::invalid(format!(
+            "a low-rank stack of {} values per image is not {width}x{height} RGB",
+            stack.rows.ncols()
+        )));
+    }
+    let started = Instant::now();
+    let mut timings = Timings::default();
+    let convolver = BankConvolver::new(params.filters.clone());
+    let padding = Padding::from_tileable(params.tileable);
+
+    let selected = if stack.len() <= params.selected {
+        (0..stack.len()).collect()
+    } else {
+        let basis = principal_images_low_rank(&stack, &selection_basis_options(params.seed))?;
+        representatives_from_basis(
+            &basis,
+            (width, height),
+            params.selected,
+            &convolver,
+            padding,
+            params.seed,
+            progress,
+        )?
+    };
+    timings.selection = started.elapsed();
+
+    let mut images = stack.select(&selected);
+    let mut levels = Vec::with_capacity(params.levels);
+    let sizes = level_sizes(width, height, params.levels);
+    for (l, &(w, h)) in sizes.iter().enumerate() {
+        let level_started = Instant::now();
+        if l > 0 {
+            let (pw, ph) = sizes[l - 1];
+            images = images.map_rows(|row| downsample(row, pw, ph, 3, params.tileable).0);
+        }
+        let options = TextonOptions {
+            textons: (params.textons >> (2 * l)).max(1),
+            basis_rank: params.basis_rank,
+            appearance_dims: params.appearance_dims,
+            padding,
+            seed: params.seed + l as u64,
+        };
+        let basis = principal_images_low_rank(&images, &basis_options(&options))?;
+        let basis_time = level_started.elapsed();
+        let mut textons = level_textons_from_basis(&basis, (w, h), &convolver, &options, progress)?;
+        drop(basis);
+        textons.timings.filtering += basis_time;
+        timings.filtering += textons.timings.filtering;
+        timings.kmeans += textons.timings.kmeans;
+        timings.gamma += textons.timings.gamma;
+        levels.push(textons);
+    }
+    drop(images);
 
     let knn_started = Instant::now();
     let analysed = knn_lists(levels, params, progress);

@@ -6,7 +6,7 @@
 //! images becomes a quadratic form in their basis coordinates (exact up to the basis' 99.9%
 //! energy cut).
 
-use super::basis::{principal_images, BasisOptions};
+use super::basis::{principal_images, BasisOptions, PrincipalImages};
 use super::convolve::{BankConvolver, Padding};
 use super::features::rgb_responses;
 use super::kmeans::{kmeans, KMeansOptions};
@@ -32,7 +32,30 @@ pub fn representatives(
     if n <= count {
         return Ok((0..n).collect());
     }
-    let basis = principal_images(images, &BasisOptions { seed, ..BasisOptions::default() })?;
+    let basis = principal_images(images, &selection_basis_options(seed))?;
+    representatives_from_basis(&basis, (width, height), count, convolver, padding, seed, progress)
+}
+
+/// The basis options of the selection: the defaults with `seed`.
+pub fn selection_basis_options(seed: u64) -> BasisOptions {
+    BasisOptions { seed, ..BasisOptions::default() }
+}
+
+/// [`representatives`] of the images whose principal images `basis` holds (one row of
+/// `basis.coords` per image), without the images themselves.
+pub fn representatives_from_basis(
+    basis: &PrincipalImages,
+    (width, height): (usize, usize),
+    count: usize,
+    convolver: &BankConvolver,
+    padding: Padding,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<Vec<usize>> {
+    let n = basis.coords.nrows();
+    if n <= count {
+        return Ok((0..n).collect());
+    }
     let coords = response_coordinates(&basis.components, (width, height), convolver, padding)?;
     let points = basis.coords.dot(&coords);
     let clustering =

@@ -11,9 +11,22 @@
 //! | `level{L}_knn.npy` | u32 | [h_L, w_L, k] kNN lists (pixel index y·w+x, itself first) |
 //! | `level{L}_knn2.npy` | u32 | [h_L, w_L, k] two-level-neighbourhood lists (not on the coarsest level) |
 //! | `level{L}_appearance.npy` | f32 | [h_L, w_L, d] per-pixel appearance vectors |
+//!
+//! An analysis of a factorized `.btf` file or of a streamed basis (see
+//! [`super::input`]) stores its sample as factors instead of `images.npy` (whose 400×400 ×
+//! 22,801 images would be 20 GiB); `analysis.json` then has a `sample` entry with the
+//! colour model, and a `basis` entry saying how the analysis saw the images:
+//!
+//! | file | dtype | shape |
+//! |---|---|---|
+//! | `sample_image_factors.npy` | f32 | [3, n, K] per channel, zero-padded to the largest K |
+//! | `sample_texel_factors.npy` | f32 | [3, h, w, K] |
+//! | `sample_scale.npy` | f32 | [n] per-image scale after decoding |
 
 use super::npy;
 use super::pipeline::Analysis;
+use crate::btf::colour::ColourModel;
+use crate::btf::factored::FactoredStack;
 use crate::btf::image_io::linear_to_srgb8;
 use crate::btf::Btf;
 use crate::fsutil::{write_file_atomic, StagedDir};
@@ -44,6 +57,34 @@ pub struct Manifest {
     /// Material maps stored beside the sample (`analyze --maps`; see [`crate::maps`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub maps: Vec<crate::maps::MapInfo>,
+    /// The sample as factors (absent: `images.npy` holds the images).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<SampleInfo>,
+    /// How the analysis saw the images (absent: decoded images).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub basis: Option<super::input::BasisInfo>,
+}
+
+/// A sample stored as factors (see the module notes): channel c of image i at texel p is
+/// Σₖ image[c][i][k] · texel[c][p][k], decoded by the colour model, then exp(x) − ε when
+/// `log_encoded`, then times the image's scale.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SampleInfo {
+    /// Always "factors".
+    pub kind: String,
+    /// Components per channel.
+    pub components: [usize; 3],
+    /// The DFMF colour model number (0 RGB, 11 log-Y U/Y V/Y, …).
+    pub colour_model: i32,
+    /// The PCA colour model's mean and transform (model 3 only).
+    #[serde(default)]
+    pub colour_mean: [f32; 3],
+    #[serde(default)]
+    pub colour_transform: [[f32; 3]; 3],
+    pub log_encoded: bool,
+    pub image_factors: String,
+    pub texel_factors: String,
+    pub scale: String,
 }
 
 /// Where the stack came from.
@@ -71,6 +112,14 @@ pub struct Params {
     pub seed: u64,
 }
 
+fn one() -> f64 {
+    1.0
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+
 /// One level's sizes and files.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LevelInfo {
@@ -82,6 +131,10 @@ pub struct LevelInfo {
     pub basis_rank: usize,
     pub basis_energy: f64,
     pub kmeans_iterations: usize,
+    /// Share of the features' energy the clustering saw (absent: 1, the full features;
+    /// see [`super::reduce`]).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub feature_energy: f64,
     pub files: LevelFiles,
 }
 
@@ -114,6 +167,61 @@ pub fn write(
 pub fn write_with_maps(
     analysis: &Analysis,
     btf: &Btf,
+    source: (&Path, Option<[u32; 4]>),
+    maps: &[crate::maps::MaterialMap],
+    dir: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
+    write_sample(analysis, Stored::Images(btf), None, source, maps, dir, overwrite)
+}
+
+/// Writes the result of [`super::input::run`]: the decoded images' analysis as
+/// [`write_with_maps`] does, an analysis from factors or a streamed basis with its sample
+/// as factors.
+pub fn write_analysed(
+    analysed: &super::input::Analysed,
+    input: &super::input::Input,
+    source: (&Path, Option<[u32; 4]>),
+    maps: &[crate::maps::MaterialMap],
+    dir: &Path,
+    overwrite: bool,
+) -> Result<PathBuf> {
+    let stored = match (&analysed.factors, input.images()) {
+        (Some(f), _) => Stored::Factors(f),
+        (None, Some(btf)) => Stored::Images(btf),
+        (None, None) => return Err(Error::invalid("an analysis from factors without its factors")),
+    };
+    write_sample(&analysed.analysis, stored, analysed.basis.clone(), source, maps, dir, overwrite)
+}
+
+/// The sample an analysis directory stores.
+#[derive(Clone, Copy)]
+enum Stored<'a> {
+    Images(&'a Btf),
+    Factors(&'a FactoredStack),
+}
+
+impl Stored<'_> {
+    fn size(&self) -> (usize, usize, usize) {
+        match self {
+            Stored::Images(b) => (b.len(), b.width(), b.height()),
+            Stored::Factors(f) => (f.len(), f.width(), f.height()),
+        }
+    }
+
+    fn pairs(&self) -> &[crate::btf::DirectionPair] {
+        match self {
+            Stored::Images(b) => b.pairs(),
+            Stored::Factors(f) => f.pairs(),
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_sample(
+    analysis: &Analysis,
+    stored: Stored,
+    basis: Option<super::input::BasisInfo>,
     (source_path, crop): (&Path, Option<[u32; 4]>),
     maps: &[crate::maps::MaterialMap],
     dir: &Path,
@@ -121,28 +229,129 @@ pub fn write_with_maps(
 ) -> Result<PathBuf> {
     let staged = StagedDir::new(dir, overwrite)?;
     let out = staged.path();
-    let (w, h) = (btf.width(), btf.height());
-    npy::write(&out.join("images.npy"), &[btf.len(), h, w, 3], btf.pixels())?;
+    let (n, w, h) = stored.size();
+    let sample = match stored {
+        Stored::Images(btf) => {
+            npy::write(&out.join("images.npy"), &[n, h, w, 3], btf.pixels())?;
+            None
+        }
+        Stored::Factors(f) => Some(write_factors(out, f)?),
+    };
     let directions: Vec<f32> =
-        btf.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
-    npy::write(&out.join("directions.npy"), &[btf.len(), 4], &directions)?;
+        stored.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
+    npy::write(&out.join("directions.npy"), &[n, 4], &directions)?;
     let mut levels = Vec::new();
     for (l, level) in analysis.levels.iter().enumerate() {
         levels.push(write_level(out, l, level)?);
     }
     write_previews(out, analysis)?;
-    let mut manifest = manifest(analysis, btf, source_path, crop, levels);
+    let print = match stored {
+        Stored::Images(btf) => fingerprint(btf),
+        Stored::Factors(f) => factor_fingerprint(f),
+    };
+    let mut manifest = manifest(analysis, (n, w, h), print, source_path, crop, levels);
     manifest.maps = crate::maps::store_maps(out, maps)?;
+    manifest.sample = sample;
+    manifest.basis = basis;
     let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
     write_file_atomic(&out.join(MANIFEST), json.as_bytes())?;
     staged.commit()
+}
+
+/// The factor files of a factored sample, and their manifest entry.
+fn write_factors(out: &Path, f: &FactoredStack) -> Result<SampleInfo> {
+    let components = f.components();
+    let k = components.iter().copied().max().unwrap_or(0);
+    let (n, texels) = (f.len(), f.width() * f.height());
+    let padded = |a: &ndarray::Array2<f32>, rows: usize| -> Vec<f32> {
+        (0..rows).flat_map(|r| (0..k).map(move |j| if j < a.ncols() { a[[r, j]] } else { 0.0 })).collect()
+    };
+    let image: Vec<f32> = f.image.iter().flat_map(|a| padded(a, n)).collect();
+    let texel: Vec<f32> = f.texel.iter().flat_map(|a| padded(a, texels)).collect();
+    let info = SampleInfo {
+        kind: "factors".into(),
+        components,
+        colour_model: f.model.id(),
+        colour_mean: match f.model {
+            ColourModel::Pca { mean, .. } => mean,
+            _ => [0.0; 3],
+        },
+        colour_transform: match f.model {
+            ColourModel::Pca { transform, .. } => transform,
+            _ => [[0.0; 3]; 3],
+        },
+        log_encoded: f.log_encoded,
+        image_factors: "sample_image_factors.npy".into(),
+        texel_factors: "sample_texel_factors.npy".into(),
+        scale: "sample_scale.npy".into(),
+    };
+    npy::write(&out.join(&info.image_factors), &[3, n, k], &image)?;
+    npy::write(&out.join(&info.texel_factors), &[3, f.height(), f.width(), k], &texel)?;
+    npy::write(&out.join(&info.scale), &[n], &f.scale)?;
+    Ok(info)
+}
+
+/// The factored sample of the analysis in `dir` (whose manifest has a `sample` entry).
+pub fn read_factors(dir: &Path, manifest: &Manifest) -> Result<FactoredStack> {
+    let Some(info) = &manifest.sample else {
+        return Err(Error::format(dir.join(MANIFEST), "the analysis stores images, not factors"));
+    };
+    let (n, w, h) = (manifest.images, manifest.width, manifest.height);
+    let image: npy::NpyArray<f32> = npy::read(&dir.join(&info.image_factors))?;
+    let texel: npy::NpyArray<f32> = npy::read(&dir.join(&info.texel_factors))?;
+    let scale: npy::NpyArray<f32> = npy::read(&dir.join(&info.scale))?;
+    let k = image.shape.get(2).copied().unwrap_or(0);
+    if image.shape != [3, n, k] || info.components.iter().any(|&c| c == 0 || c > k) {
+        return Err(Error::format(dir.join(&info.image_factors), format!("expected shape [3, {n}, K]")));
+    }
+    if texel.shape != [3, h, w, k] {
+        return Err(Error::format(
+            dir.join(&info.texel_factors),
+            format!("expected shape [3, {h}, {w}, {k}]"),
+        ));
+    }
+    if scale.shape != [n] {
+        return Err(Error::format(dir.join(&info.scale), format!("expected shape [{n}]")));
+    }
+    let take = |data: &[f32], c: usize, rows: usize| {
+        let kc = info.components[c];
+        ndarray::Array2::from_shape_fn((rows, kc), |(r, j)| data[(c * rows + r) * k + j])
+    };
+    let model = ColourModel::from_id(info.colour_model, info.colour_mean, info.colour_transform)
+        .map_err(|m| Error::format(dir.join(MANIFEST), m))?;
+    let pairs = read_directions(dir, n)?;
+    FactoredStack::new(
+        &dir.join(&info.texel_factors),
+        (w, h),
+        pairs,
+        (0..3).map(|c| take(&image.data, c, n)).collect(),
+        (0..3).map(|c| take(&texel.data, c, w * h)).collect(),
+        model,
+        info.log_encoded,
+        scale.data,
+    )
+}
+
+/// The direction pairs of `directions.npy` (n of them).
+pub fn read_directions(dir: &Path, n: usize) -> Result<Vec<crate::btf::DirectionPair>> {
+    use crate::btf::{Direction, DirectionPair};
+    let path = dir.join("directions.npy");
+    let dirs: npy::NpyArray<f32> = npy::read(&path)?;
+    if dirs.shape != [n, 4] {
+        return Err(Error::format(&path, format!("shape {:?} does not match {n} images", dirs.shape)));
+    }
+    dirs.data
+        .chunks_exact(4)
+        .map(|d| Ok(DirectionPair { light: Direction::new(d[0], d[1])?, view: Direction::new(d[2], d[3])? }))
+        .collect::<Result<Vec<_>>>()
+        .map_err(|e| Error::format(&path, e.to_string()))
 }
 
 /// The manifest `analysis` of `btf` would be written with (the `source_path` it was read
 /// from, `crop`), so that a sample can be used straight from memory as from its directory.
 pub fn manifest_of(analysis: &Analysis, btf: &Btf, source_path: &Path, crop: Option<[u32; 4]>) -> Manifest {
     let levels = analysis.levels.iter().enumerate().map(|(l, level)| level_info(l, level)).collect();
-    manifest(analysis, btf, source_path, crop, levels)
+    manifest(analysis, (btf.len(), btf.width(), btf.height()), fingerprint(btf), source_path, crop, levels)
 }
 
 fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> Result<LevelInfo> {
@@ -190,13 +399,15 @@ fn level_info(l: usize, level: &super::pipeline::AnalysisLevel) -> LevelInfo {
         basis_rank: t.basis_rank,
         basis_energy: t.basis_energy,
         kmeans_iterations: t.kmeans_iterations,
+        feature_energy: t.feature_energy,
         files,
     }
 }
 
 fn manifest(
     analysis: &Analysis,
-    btf: &Btf,
+    (images, width, height): (usize, usize, usize),
+    fingerprint: String,
     source_path: &Path,
     crop: Option<[u32; 4]>,
     levels: Vec<LevelInfo>,
@@ -214,7 +425,7 @@ fn manifest(
     Manifest {
         format: "btfsynth-analysis".into(),
         version: 1,
-        source: Source { path: source_path.display().to_string(), fingerprint: fingerprint(btf), crop },
+        source: Source { path: source_path.display().to_string(), fingerprint, crop },
         params: Params {
             textons: p.textons,
             selected: p.selected,
@@ -228,12 +439,14 @@ fn manifest(
         },
         filters: serde_json::json!({"name": p.filters.name(), "filters": filters}),
         selected: analysis.selected.clone(),
-        images: btf.len(),
-        width: btf.width(),
-        height: btf.height(),
+        images,
+        width,
+        height,
         k: p.k,
         levels,
         maps: Vec::new(),
+        sample: None,
+        basis: None,
     }
 }
 
@@ -382,6 +595,35 @@ pub fn fingerprint(btf: &Btf) -> String {
         eat(&v.to_bits().to_le_bytes());
     }
     format!("fnv1a64:{h:016x}")
+}
+
+/// FNV-1a 64 over the sizes, the directions, the decoding and the factors' f32 bits of a
+/// factored sample (prefix `fnv1a64-factors:`, so it never equals an images' fingerprint).
+pub fn factor_fingerprint(f: &FactoredStack) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(&(f.width() as u64).to_le_bytes());
+    eat(&(f.height() as u64).to_le_bytes());
+    for p in f.pairs() {
+        for a in [p.light.theta, p.light.phi, p.view.theta, p.view.phi] {
+            eat(&a.to_le_bytes());
+        }
+    }
+    eat(&f.model.id().to_le_bytes());
+    eat(&[f.log_encoded as u8]);
+    if let ColourModel::Pca { mean, transform } = f.model {
+        for v in mean.iter().chain(transform.iter().flatten()) {
+            eat(&v.to_le_bytes());
+        }
+    }
+    for v in f.scale.iter().chain(f.image.iter().flatten()).chain(f.texel.iter().flatten()) {
+        eat(&v.to_bits().to_le_bytes());
+    }
+    format!("fnv1a64-factors:{h:016x}")
 }
 
 /// Peak resident set size from /proc (Linux); None elsewhere.

@@ -2,12 +2,13 @@
 //! responses of the representative images, the 2D texton map, Γ and its embedding.
 
 use super::appearance::appearance_vectors;
-use super::basis::{principal_images, BasisOptions};
+use super::basis::{principal_images, BasisOptions, PrincipalImages};
 use super::convolve::{BankConvolver, Padding};
 use super::features::texton_features;
 use super::gamma::{gamma_with_default, spectral_embedding, DEFAULT_ENERGY};
 use super::kmeans::{kmeans, KMeansOptions};
 use super::knn::TextonMap;
+use super::reduce::{full_centres, reduce, REDUCE_ABOVE};
 use crate::progress::Progress;
 use crate::{Error, Result};
 use ndarray::{Array2, ArrayView2};
@@ -31,6 +32,9 @@ pub struct LevelTextons {
     pub basis_energy: f64,
     /// Lloyd iterations the clustering ran.
     pub kmeans_iterations: usize,
+    /// Share of the centred features' energy the clustering saw: 1 unless the level was
+    /// clustered in its leading feature subspace (see [`super::reduce`]).
+    pub feature_energy: f64,
     /// Time spent filtering, clustering and forming Γ.
     pub timings: StageTimes,
 }
@@ -56,9 +60,30 @@ pub struct TextonOptions {
     pub seed: u64,
 }
 
+/// The basis options a level uses: at most `basis_rank` components, the level's seed.
+pub fn basis_options(options: &TextonOptions) -> BasisOptions {
+    BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() }
+}
+
 /// Textons of `images` (one interleaved RGB image per row, `width × height`).
 pub fn level_textons(
     images: ArrayView2<f32>,
+    size: (usize, usize),
+    convolver: &BankConvolver,
+    options: &TextonOptions,
+    progress: &dyn Progress,
+) -> Result<LevelTextons> {
+    let started = Instant::now();
+    let basis = principal_images(images, &basis_options(options))?;
+    let mut level = level_textons_from_basis(&basis, size, convolver, options, progress)?;
+    level.timings.filtering = started.elapsed().saturating_sub(level.timings.kmeans + level.timings.gamma);
+    Ok(level)
+}
+
+/// Textons of the images whose principal images `basis` holds (the level's images
+/// themselves are not needed: filtering is linear, see [`super::basis`]).
+pub fn level_textons_from_basis(
+    basis: &PrincipalImages,
     (width, height): (usize, usize),
     convolver: &BankConvolver,
     options: &TextonOptions,
@@ -66,22 +91,25 @@ pub fn level_textons(
 ) -> Result<LevelTextons> {
     let mut timings = StageTimes::default();
     let started = Instant::now();
-    let basis_options =
-        BasisOptions { max_rank: options.basis_rank, seed: options.seed, ..BasisOptions::default() };
-    let basis = principal_images(images, &basis_options)?;
-    let features = texton_features(&basis, width, height, convolver, options.padding)?;
+    let features = texton_features(basis, width, height, convolver, options.padding)?;
     let wraps = matches!(options.padding, Padding::Wrap);
     let appearance =
-        appearance_vectors(&basis, (width, height), options.appearance_dims, wraps, options.seed)?;
+        appearance_vectors(basis, (width, height), options.appearance_dims, wraps, options.seed)?;
     timings.filtering = started.elapsed();
 
     let started = Instant::now();
     let k = options.textons.min(width * height);
-    let clustering = kmeans(
-        features.view(),
-        &KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() },
-        progress,
-    )?;
+    let kmeans_options = KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() };
+    let (clustering, feature_energy) = if features.len() > REDUCE_ABOVE {
+        let reduced = reduce(features.view(), options.seed);
+        let mut clustering = kmeans(reduced.coords.view(), &kmeans_options, progress)?;
+        drop(reduced.coords);
+        clustering.centres = full_centres(features.view(), &clustering.labels, clustering.centres.nrows());
+        (clustering, reduced.energy)
+    } else {
+        (kmeans(features.view(), &kmeans_options, progress)?, 1.0)
+    };
+    drop(features);
     timings.kmeans = started.elapsed();
     let textons = clustering.centres.nrows();
     if textons >= u16::MAX as usize {
@@ -102,6 +130,7 @@ pub fn level_textons(
         basis_rank: basis.components.nrows(),
         basis_energy: basis.energy,
         kmeans_iterations: clustering.iterations,
+        feature_energy,
         timings,
     })
 }

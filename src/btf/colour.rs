@@ -140,6 +140,24 @@ impl ColourModel {
         rgb.map(|x| x as f32)
     }
 
+    /// The model as an affine map, `rgb = m · v + t` (rows of `m` are R, G, B), for the
+    /// models that are one: RGB, YUV, the PCA basis and YCoCg. `None` for the others, whose
+    /// decoding multiplies channels (the spectral models), takes exponentials (the log
+    /// models) or a cube and a gamma curve (Lab): there a sum of decoded images is not the
+    /// decoding of the summed factors.
+    pub fn affine(&self) -> Option<([[f32; 3]; 3], [f32; 3])> {
+        let f = |m: &[[f64; 3]; 3]| m.map(|row| row.map(|v| v as f32));
+        match self {
+            ColourModel::Rgb => Some(([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [0.0; 3])),
+            ColourModel::Yuv => Some((f(&YUV_TO_RGB), [0.0; 3])),
+            ColourModel::YCoCg => Some((f(&YCOCG_TO_RGB), [0.0; 3])),
+            ColourModel::Pca { mean, transform } => {
+                Some(([0, 1, 2].map(|j| [0, 1, 2].map(|i| transform[i][j])), *mean))
+            }
+            _ => None,
+        }
+    }
+
     /// RGB to the model's three channels: the inverse of [`ColourModel::to_rgb`], for the
     /// models btfsynth writes (RGB and log-Y, U/Y, V/Y). Luminance below zero is clamped
     /// to zero first, since its logarithm is taken.
@@ -288,6 +306,32 @@ mod tests {
         let got = ColourModel::LogYUvOverY.to_rgb([((y + 1e-5).ln()) as f32, 0.1, -0.2]);
         for c in 0..3 {
             assert!((got[c] as f64 - want[c]).abs() < 1e-6, "{got:?} {want:?}");
+        }
+    }
+
+    #[test]
+    fn affine_models_decode_as_their_matrix() {
+        let pca = ColourModel::Pca {
+            mean: [0.1, 0.2, 0.3],
+            transform: [[1.0, 2.0, 0.0], [0.0, 1.0, 0.5], [0.3, 0.0, 1.0]],
+        };
+        for model in [ColourModel::Rgb, ColourModel::Yuv, ColourModel::YCoCg, pca] {
+            let (m, t) = model.affine().unwrap();
+            let v = [0.3f32, -0.2, 0.7];
+            let want = model.to_rgb(v);
+            for r in 0..3 {
+                let got = m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2] + t[r];
+                assert!((got - want[r]).abs() < 1e-5, "{model:?}: {got} vs {}", want[r]);
+            }
+        }
+        for model in [
+            ColourModel::Lab,
+            ColourModel::Spectral,
+            ColourModel::SpectralLinear,
+            ColourModel::LogYUvOverY,
+            ColourModel::LogRgb,
+        ] {
+            assert!(model.affine().is_none(), "{model:?}");
         }
     }
 

@@ -64,6 +64,92 @@ pub fn load(path: &Path, options: &LoadOptions, progress: &dyn Progress) -> Resu
     read_entries(&entries, options, progress)
 }
 
+/// A stack of image files (a folder, a `btf.json` or one image) whose images are read
+/// when asked for: [`crate::btf::ImageSource`] for stacks too large to hold, which the
+/// analysis streams (see `analysis::basis::streamed_basis`).
+pub struct FolderStack {
+    path: PathBuf,
+    entries: Vec<Entry>,
+    pairs: Vec<DirectionPair>,
+    width: usize,
+    height: usize,
+    crop: Option<Crop>,
+}
+
+impl FolderStack {
+    /// Lists the images at `path` and reads the first one for the size.
+    pub fn open(path: &Path, crop: Option<Crop>) -> Result<FolderStack> {
+        let entries = discover(path)?;
+        let first = read_stack_image(&entries[0].file, crop)?;
+        let pairs: Vec<DirectionPair> = entries.iter().map(|e| e.pair).collect();
+        if let Some((a, b)) = crate::btf::directions::first_duplicate(&pairs) {
+            return Err(Error::format(
+                &entries[b].file,
+                format!(
+                    "has the same light and view directions as {} ({})",
+                    entries[a].file.display(),
+                    pairs[a]
+                ),
+            ));
+        }
+        Ok(FolderStack {
+            path: path.to_path_buf(),
+            entries,
+            pairs,
+            width: first.width,
+            height: first.height,
+            crop,
+        })
+    }
+}
+
+impl crate::btf::ImageSource for FolderStack {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn width(&self) -> usize {
+        self.width
+    }
+
+    fn height(&self) -> usize {
+        self.height
+    }
+
+    fn pairs(&self) -> &[DirectionPair] {
+        &self.pairs
+    }
+
+    fn decode_image(&self, i: usize, out: &mut [f16]) -> Result<()> {
+        let entry = &self.entries[i];
+        let image = read_stack_image(&entry.file, self.crop)?;
+        if (image.width, image.height) != (self.width, self.height) {
+            return Err(Error::format(
+                &entry.file,
+                format!(
+                    "this image is {}x{} pixels but {} is {}x{}; all images of a stack must have one size",
+                    image.width,
+                    image.height,
+                    self.entries[0].file.display(),
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        out.copy_from_slice(&image.data);
+        Ok(())
+    }
+
+    fn decode_all(&self, progress: &dyn Progress) -> Result<Btf> {
+        crate::btf::source::ensure_fits_in_memory(
+            &self.path,
+            self.pairs.len(),
+            self.width * self.height * 3,
+        )?;
+        read_entries(&self.entries, &LoadOptions { crop: self.crop }, progress)
+    }
+}
+
 /// What `path` holds, as a list of images with their directions.
 fn discover(path: &Path) -> Result<Vec<Entry>> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;

@@ -8,6 +8,7 @@ pub mod archive;
 pub mod colour;
 pub mod convert;
 pub mod directions;
+pub mod factored;
 pub mod factorize;
 pub mod gen;
 pub mod image_io;

@@ -71,17 +71,14 @@ impl ImageSource for Btf {
 }
 
 /// Fails with a message that suggests `--crop` when `images` decoded images of
-/// `per_image` f16 values would not fit in the memory available now (Linux; elsewhere
-/// the check is skipped).
+/// `per_image` f16 values would not fit in the memory budget ([`memory_budget`]).
 pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Result<()> {
     let needed = (images as u128 * per_image as u128 * 2).min(u64::MAX as u128) as u64;
-    // Leave a fifth of the memory for everything else the process and the machine need.
-    let budget = available_memory().map(|a| a / 10 * 8);
-    match budget {
-        Some(budget) if needed > budget => Err(Error::format(
+    match memory_budget()? {
+        Some((budget, source)) if needed > budget => Err(Error::format(
             path,
             format!(
-                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget (80% of the memory available); decode a part with --crop x,y,w,h",
+                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget ({source}); decode a part with --crop x,y,w,h",
                 needed as f64 / (1u64 << 30) as f64,
                 budget as f64 / (1u64 << 30) as f64
             ),
@@ -90,8 +87,50 @@ pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Re
     }
 }
 
-/// `MemAvailable` from /proc/meminfo, in bytes (None where it cannot be read: not Linux).
-pub fn available_memory() -> Option<u64> {
+/// The environment variable that overrides the memory budget.
+pub const MEMORY_ENV: &str = "BTFSYNTH_MEMORY";
+
+/// The memory work may use, in bytes, and where the figure comes from (for messages):
+/// 80% of `MemAvailable` (the rest is left for everything else the process and the
+/// machine need), or `BTFSYNTH_MEMORY` (`6G`, `512M`, bytes; `unlimited` turns checks
+/// off). `None` when there is nothing to check against (no /proc/meminfo).
+pub fn memory_budget() -> Result<Option<(u64, String)>> {
+    match std::env::var(MEMORY_ENV) {
+        Ok(text) => parse_budget(&text),
+        Err(_) => Ok(available_memory().map(|a| {
+            (a / 10 * 8, format!("80% of the {:.1} GiB available", a as f64 / (1u64 << 30) as f64))
+        })),
+    }
+}
+
+/// `6G`, `512M`, `64K`, plain bytes, or `unlimited`.
+pub(crate) fn parse_budget(text: &str) -> Result<Option<(u64, String)>> {
+    let t = text.trim();
+    if t.eq_ignore_ascii_case("unlimited") {
+        return Ok(None);
+    }
+    let split = t.find(|c: char| !c.is_ascii_digit() && c != '.').unwrap_or(t.len());
+    let (digits, unit) = (&t[..split], t[split..].trim());
+    let scale: u64 = match unit.to_ascii_uppercase().trim_end_matches("IB").trim_end_matches('B') {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        "T" => 1 << 40,
+        _ => 0,
+    };
+    match digits.parse::<f64>() {
+        Ok(v) if scale > 0 && v.is_finite() && v > 0.0 => {
+            Ok(Some(((v * scale as f64) as u64, format!("{MEMORY_ENV}={t}"))))
+        }
+        _ => Err(Error::invalid(format!(
+            "{MEMORY_ENV}='{text}': expected a size such as 6G, 512M or a number of bytes, or 'unlimited'"
+        ))),
+    }
+}
+
+/// `MemAvailable` from /proc/meminfo, in bytes.
+pub(crate) fn available_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

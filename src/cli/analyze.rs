@@ -4,10 +4,10 @@ use super::progress::Bars;
 use super::usage;
 use anyhow::Result;
 use btfsynth::analysis::filters::FilterBank;
-use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
-use btfsynth::analysis::store;
+use btfsynth::analysis::pipeline::AnalysisParams;
+use btfsynth::analysis::{input, store};
 use btfsynth::btf::image_io::is_image_path;
-use btfsynth::btf::{load, Crop, LoadOptions};
+use btfsynth::btf::Crop;
 use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
 use btfsynth::maps::{self, MapSource, MaterialMap};
 use std::path::{Path, PathBuf};
@@ -63,6 +63,11 @@ pub struct AnalyzeArgs {
     /// commas; kinds: normal, roughness, metallic, occlusion, height.
     #[arg(long, value_name = "KIND=FILE,…", value_parser = parse_maps)]
     maps: Option<MapList>,
+    /// Analyse decoded images even where the stack is a factorized .btf file or too large
+    /// to decode (then refused): by default a DFMF/FMF file is analysed from its factors and
+    /// a stack too large to decode through a streamed basis.
+    #[arg(long)]
+    decoded: bool,
     /// Also write the time each stage took and the peak memory here (analysis.json holds
     /// only what the same inputs always give).
     #[arg(long, value_name = "FILE.json")]
@@ -108,47 +113,13 @@ fn check_sample_size(args: &AnalyzeArgs, params: &AnalysisParams, (w, h): (usize
     Ok(())
 }
 
-/// Bytes the analysis allocates beyond the decoded stack at its peak: every image as rows
-/// of f32 and a centred copy (the principal images of the whole stack, when there are more
-/// images than `selected`), the same for the selected images, and the filter responses of
-/// the principal images at every pixel of the finest level. Measured peaks (`analyze
-/// --report`, generated 576-image stacks) were 0.8 to 1.0 times this plus ~95 MB.
-fn analysis_bytes(images: usize, (w, h): (usize, usize), params: &AnalysisParams) -> u64 {
-    let f32s = std::mem::size_of::<f32>() as u64;
-    let rows = |n: usize| (n as u64).saturating_mul((w * h * 3) as u64 * f32s);
-    let whole = if images > params.selected { rows(images).saturating_mul(2) } else { 0 };
-    let selected = rows(images.min(params.selected)).saturating_mul(2);
-    let rank = params.basis_rank.min(images) as u64;
-    let responses = ((w * h) as u64 * 3 * f32s).saturating_mul(rank * params.filters.len() as u64);
-    whole.saturating_add(selected).saturating_add(responses)
-}
-
-/// Refuses, before the analysis starts, one that would need more than `budget` bytes (80%
-/// of the memory available; `None` where the platform does not say): it would otherwise
-/// be killed for memory after minutes of work.
-fn check_memory(stack: &Path, needed: u64, budget: Option<u64>) -> Result<()> {
-    match budget {
-        Some(budget) if needed > budget => Err(btfsynth::Error::format(
-            stack,
-            format!(
-                "analysing it would take {:.1} GiB beyond the decoded images, more than the {:.1} GiB budget \
-                 (80% of the memory available); analyse a part with --crop x,y,w,h, or fewer images",
-                needed as f64 / (1u64 << 30) as f64,
-                budget as f64 / (1u64 << 30) as f64
-            ),
-        )
-        .into()),
-        _ => Ok(()),
-    }
-}
-
 /// The maps of `--maps`, checked against the stack and cropped like it.
-fn load_maps(args: &AnalyzeArgs, stack: &btfsynth::btf::Btf) -> Result<Vec<MaterialMap>> {
+fn load_maps(args: &AnalyzeArgs, (width, height): (usize, usize)) -> Result<Vec<MaterialMap>> {
     let Some(MapList(sources)) = &args.maps else { return Ok(Vec::new()) };
     // Maps match the uncropped image: known for a one-image stack, else only the crop's fit
     // can be checked.
     let size = match args.crop {
-        None => Some((stack.width(), stack.height())),
+        None => Some((width, height)),
         Some(_) if is_image_path(&args.stack) => {
             image::image_dimensions(&args.stack).ok().map(|(w, h)| (w as usize, h as usize))
         }
@@ -193,17 +164,18 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         seed: args.seed,
         filters,
     };
-    let stack = load(&args.stack, &LoadOptions { crop: args.crop }, bars)?;
-    let maps = load_maps(&args, &stack)?;
-    check_sample_size(&args, &params, (stack.width(), stack.height()))?;
-    let budget = btfsynth::btf::source::available_memory().map(|a| a / 10 * 8);
-    check_memory(&args.stack, analysis_bytes(stack.len(), (stack.width(), stack.height()), &params), budget)?;
-    let analysis = analyze(&stack, &params, bars)?;
+    // The memory estimate of the path taken is checked inside, before anything is decoded.
+    let mode = if args.decoded { input::Mode::Decoded } else { input::Mode::Auto };
+    let stack = input::open(&args.stack, args.crop, mode, &params, bars)?;
+    let maps = load_maps(&args, stack.size())?;
+    check_sample_size(&args, &params, stack.size())?;
+    let analysed = input::run(&stack, &params, bars)?;
+    let analysis = &analysed.analysis;
     let crop = args.crop.map(|c| [c.x, c.y, c.width, c.height]);
-    store::write_with_maps(&analysis, &stack, (&args.stack, crop), &maps, staged_output.path(), false)?;
+    store::write_analysed(&analysed, &stack, (&args.stack, crop), &maps, staged_output.path(), false)?;
     let mut outputs = vec![staged_output];
     if let Some(report) = staged_report {
-        let text = serde_json::to_string_pretty(&store::timings_json(&analysis))?;
+        let text = serde_json::to_string_pretty(&store::timings_json(analysis))?;
         std::fs::write(report.path(), text).map_err(|e| btfsynth::Error::io(report.target(), e))?;
         outputs.push(report);
     }
@@ -223,9 +195,10 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         })
         .collect();
     eprintln!(
-        "analysed {} images ({} selected) into {}",
+        "analysed {} images ({} selected, from {}) into {}",
         stack.len(),
         analysis.selected.len(),
+        input::describe(&stack),
         written.display()
     );
     eprintln!("  levels    {}", sizes.join("; "));
@@ -244,29 +217,4 @@ pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
         t.knn.as_secs_f64()
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_analysis_peak_counts_the_whole_stack_twice_only_when_representatives_are_chosen() {
-        let params = AnalysisParams::default();
-        // The UBO2014 case of issue #23 (killed at 24 GB): 22,801 images, a 192² crop.
-        let peak = analysis_bytes(22_801, (192, 192), &params) as f64 / (1u64 << 30) as f64;
-        assert!((19.0..21.0).contains(&peak), "{peak} GiB");
-        let few = analysis_bytes(256, (64, 64), &params);
-        let responses = 64 * 64 * 3 * 4 * 32 * params.filters.len() as u64;
-        assert_eq!(few, 2 * 256 * 64 * 64 * 12 + responses, "no choice: the stack's rows once, centred once");
-    }
-
-    #[test]
-    fn an_analysis_beyond_the_budget_is_refused_naming_the_stack() {
-        let stack = Path::new("big.btf");
-        let e = check_memory(stack, 20 << 30, Some(8 << 30)).unwrap_err().to_string();
-        assert!(e.contains("big.btf") && e.contains("20.0 GiB") && e.contains("--crop"), "{e}");
-        assert!(check_memory(stack, 4 << 30, Some(8 << 30)).is_ok());
-        assert!(check_memory(stack, u64::MAX, None).is_ok(), "no figure from the platform: no refusal");
-    }
 }

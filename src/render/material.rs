@@ -4,6 +4,7 @@
 
 use super::blend::{DirectionIndex, Nearest4};
 use crate::analysis::{npy, store};
+use crate::btf::factored::FactoredStack;
 use crate::btf::{directions, Direction, DirectionPair};
 use crate::{Error, Result};
 use glam::Vec3;
@@ -31,11 +32,16 @@ impl Blend16 {
 /// The pixels are kept texel-major: all images' values at one texel side by side. A blend
 /// reads its 16 images at the same texel (or the same four bilinear taps), so its reads fall
 /// in one small block instead of 16 image planes a fixed stride apart, which thrash the cache.
+///
+/// A sample stored as factors (an analysis of a factorized `.btf` or of a streamed basis,
+/// see `analysis::input`) is decoded into that layout when it is small
+/// ([`DECODE_LIMIT`]); a larger one keeps its factors and computes each value it is asked
+/// for (a K-term product per channel, then the colour model), with the same offsets.
 pub struct Material {
     width: usize,
     height: usize,
-    /// `[height][width][n][3]` linear RGB.
-    pixels: Vec<f32>,
+    /// `[height][width][n][3]` linear RGB, or the factors that compute them.
+    pixels: Texels,
     pairs: Vec<DirectionPair>,
     views: DirectionIndex,
     lights: DirectionIndex,
@@ -43,6 +49,20 @@ pub struct Material {
     image_of: Vec<Option<u32>>,
     /// Lookups wrap around the edges (the sample tiles) rather than clamp.
     pub tileable: bool,
+}
+
+/// Factored samples whose texel-major f32 values take at most this many bytes are
+/// decoded when opened: a lookup is then one read instead of a K-term product. Above it
+/// (e.g. 64×64 texels × 22,801 images, 1.1 GiB) the factors stay and values are computed
+/// on the fly; for such a sample a render reads fewer values than decoding computes.
+pub const DECODE_LIMIT: u64 = 256 << 20;
+
+/// The material's values.
+enum Texels {
+    /// `[height][width][n][3]` linear RGB.
+    Decoded(Vec<f32>),
+    /// The factors; value offsets as in `Decoded`.
+    Factors(Box<FactoredStack>),
 }
 
 impl Material {
@@ -71,6 +91,16 @@ impl Material {
             .flat_map_iter(|t| (0..n).flat_map(move |i| (0..3).map(move |c| (i, t, c))))
             .map(|(i, t, c)| value(i * plane + t * 3 + c))
             .collect();
+        Material::with_texels(width, height, pairs, Texels::Decoded(pixels))
+    }
+
+    /// A material of these values: the direction indices and the pair table.
+    fn with_texels(
+        width: usize,
+        height: usize,
+        pairs: Vec<DirectionPair>,
+        pixels: Texels,
+    ) -> Result<Material> {
         let views = directions::distinct(pairs.iter().map(|p| p.view));
         let lights = directions::distinct(pairs.iter().map(|p| p.light));
         let mut image_of = vec![None; views.len() * lights.len()];
@@ -96,6 +126,11 @@ impl Material {
     /// it was analysed as tileable).
     pub fn open(analysis_dir: &Path) -> Result<Material> {
         let manifest = store::read_manifest(analysis_dir)?;
+        if manifest.sample.is_some() && !analysis_dir.join("images.npy").exists() {
+            let mut material = Material::from_factors(store::read_factors(analysis_dir, &manifest)?)?;
+            material.tileable = manifest.params.tileable;
+            return Ok(material);
+        }
         let images: npy::NpyArray<f16> = npy::read(&analysis_dir.join("images.npy"))?;
         let dirs: npy::NpyArray<f32> = npy::read(&analysis_dir.join("directions.npy"))?;
         let [n, h, w, 3] = images.shape[..] else {
@@ -124,6 +159,43 @@ impl Material {
         let mut material = Material::from_image_major(w, h, pairs, |i| images.data[i].to_f32())?;
         material.tileable = manifest.params.tileable;
         Ok(material)
+    }
+
+    /// The material of a factored sample: decoded texel-major when that takes at most
+    /// [`DECODE_LIMIT`] bytes, else the factors themselves (see [`Material`]).
+    pub fn from_factors(f: FactoredStack) -> Result<Material> {
+        let (w, h, n) = (f.width(), f.height(), f.len());
+        let decoded_bytes = (w * h * n * 3 * 4) as u64;
+        if decoded_bytes > DECODE_LIMIT {
+            let pairs = f.pairs().to_vec();
+            return Material::with_texels(w, h, pairs, Texels::Factors(Box::new(f)));
+        }
+        // A block of texels at a time: one product per channel gives every image's values.
+        const BLOCK: usize = 256;
+        let texels = w * h;
+        let mut pixels = vec![0f32; texels * n * 3];
+        pixels.par_chunks_mut(BLOCK * n * 3).enumerate().for_each(|(b, out)| {
+            let range = b * BLOCK..b * BLOCK + out.len() / (n * 3);
+            let values: Vec<ndarray::Array2<f32>> = (0..3)
+                .map(|c| f.texel[c].slice(ndarray::s![range.clone(), ..]).dot(&f.image[c].t()))
+                .collect();
+            for (k, px) in out.chunks_exact_mut(3).enumerate() {
+                let (t, i) = (k / n, k % n);
+                let v = [values[0][[t, i]], values[1][[t, i]], values[2][[t, i]]];
+                px.copy_from_slice(&crate::btf::factored::decode_channels(
+                    f.model,
+                    f.log_encoded,
+                    f.scale[i],
+                    v,
+                ));
+            }
+        });
+        Material::with_texels(w, h, f.pairs().to_vec(), Texels::Decoded(pixels))
+    }
+
+    /// Whether values are computed from factors on the fly (see [`Material`]).
+    pub fn is_factored(&self) -> bool {
+        matches!(self.pixels, Texels::Factors(_))
     }
 
     /// The material of a BTF stack as loaded (not tileable).
@@ -169,12 +241,7 @@ impl Material {
     /// Image `image`'s pixels, `[height][width][3]` linear RGB (a copy).
     pub fn image(&self, image: u32) -> Vec<f32> {
         let n = self.pairs.len();
-        (0..self.width * self.height)
-            .flat_map(|t| {
-                let o = (t * n + image as usize) * 3;
-                [self.pixels[o], self.pixels[o + 1], self.pixels[o + 2]]
-            })
-            .collect()
+        (0..self.width * self.height).flat_map(|t| self.at((t * n + image as usize) * 3).to_array()).collect()
     }
 
     /// The images to blend for a view and a light given in the local frame (x along s,
@@ -239,8 +306,15 @@ impl Material {
     }
 
     /// The RGB at value offset `o` of the texel-major pixels (a texel block plus 3 × image).
+    #[inline]
     pub fn at(&self, o: usize) -> Vec3 {
-        Vec3::new(self.pixels[o], self.pixels[o + 1], self.pixels[o + 2])
+        match &self.pixels {
+            Texels::Decoded(p) => Vec3::new(p[o], p[o + 1], p[o + 2]),
+            Texels::Factors(f) => {
+                let per_texel = self.pairs.len() * 3;
+                Vec3::from_array(f.rgb(o % per_texel / 3, o / per_texel))
+            }
+        }
     }
 
     /// The 16 images of a view and a light selection; `cos_light` is the light's n·l,
@@ -457,6 +531,59 @@ mod tests {
         let light = Vec3::new(0.6, 0.0, 0.8);
         let c = m.shade(&m.blend(Vec3::new(0.0, 0.3, 0.9).normalize(), light), 0.0, 0.0);
         assert!((c - Vec3::new(0.4, 0.2, 0.8)).length() < 1e-6);
+    }
+
+    /// A 5×4 ubo81 sample as factors (3 components, colour model 11, so the decoding is
+    /// not linear) and the same sample decoded when opened.
+    fn factored_pair() -> (Material, Material) {
+        use crate::btf::colour::ColourModel;
+        let pairs = DirectionSet::Ubo81.pairs();
+        let n = pairs.len();
+        let factor = |seed: u64, rows: usize| {
+            ndarray::Array2::from_shape_fn((rows, 3), |(r, k)| {
+                0.3 * crate::seeded::unit(seed, r as i64, k as i64, 0) - if k == 0 { 0.5 } else { 0.1 }
+            })
+        };
+        let image = (0..3).map(|c| factor(20 + c, n)).collect();
+        let texel = (0..3).map(|c| factor(30 + c, 20)).collect();
+        let scale = (0..n).map(|i| 1.0 + (i % 3) as f32).collect();
+        let f = FactoredStack::new(
+            std::path::Path::new("t"),
+            (5, 4),
+            pairs,
+            image,
+            texel,
+            ColourModel::LogYUvOverY,
+            false,
+            scale,
+        )
+        .unwrap();
+        let on_the_fly =
+            Material::with_texels(5, 4, f.pairs().to_vec(), Texels::Factors(Box::new(f.clone()))).unwrap();
+        (Material::from_factors(f).unwrap(), on_the_fly)
+    }
+
+    #[test]
+    fn a_factored_material_shades_as_its_decoded_values() {
+        let (decoded, factored) = factored_pair();
+        assert!(!decoded.is_factored() && factored.is_factored());
+        for i in [0u32, 40, 80] {
+            for (a, b) in decoded.image(i).iter().zip(factored.image(i)) {
+                assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "image {i}: {a} vs {b}");
+            }
+        }
+        for k in 0..50 {
+            let angle = |j| crate::seeded::unit(11, k, j, 0);
+            let view = Vec3::new(0.5 * angle(0) - 0.25, 0.5 * angle(1) - 0.25, 1.0).normalize();
+            let light = Vec3::new(angle(2) - 0.5, angle(3) - 0.5, 0.7).normalize();
+            let (u, v) = (angle(4), angle(5));
+            let (a, b) = (
+                decoded.shade(&decoded.blend(view, light), u, v),
+                factored.shade(&factored.blend(view, light), u, v),
+            );
+            assert!((a - b).length() <= 1e-5 * a.length().max(1.0), "{a} vs {b}");
+            assert!(a.length() > 0.0);
+        }
     }
 
     #[test]

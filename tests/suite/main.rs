@@ -17,6 +17,7 @@ mod choosy;
 mod cli_usage;
 mod docs;
 mod export;
+mod factor_analysis;
 mod gen;
 mod interrupt;
 mod loaders;

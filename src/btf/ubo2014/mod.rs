@@ -27,7 +27,8 @@ pub mod write;
 pub use factors::Scalar;
 pub use header::{Meta, Rotation, Variant};
 
-use crate::btf::colour::{ColourModel, DRR_EPS};
+use crate::btf::colour::ColourModel;
+use crate::btf::factored::{decode_channels, saturating_f16, FactoredStack};
 use crate::btf::source::{ensure_fits_in_memory, resolve_crop, ImageSource};
 use crate::btf::{Btf, Crop, DirectionPair};
 use crate::progress::Progress;
@@ -235,6 +236,17 @@ impl BonnBtf {
         d
     }
 
+    /// For a factorized file (DFMF, FMF): its colour model, whether its data are
+    /// log-encoded, and the components of each channel, read from the header alone.
+    pub fn factor_layout(&self) -> Option<(ColourModel, bool, Vec<usize>)> {
+        match &self.body {
+            Body::Factors(f) => {
+                Some((f.model, f.log_encoded, f.channels.iter().map(|c| c.components).collect()))
+            }
+            Body::Bdi(_) => None,
+        }
+    }
+
     /// Prepares decoding of `crop` (the whole sample if `None`): reads the factor rows
     /// the crop needs. Images are decoded when asked for.
     pub fn into_window(self, crop: Option<Crop>) -> Result<Window> {
@@ -349,19 +361,46 @@ impl Window {
     /// Turns one texel's channel values into linear RGB: undo the colour model, then the
     /// log encoding, then the cosine.
     fn finish(&self, v: [f32; 3], image: usize) -> [f16; 3] {
-        let mut rgb = match &self.decoder {
-            Decoder::Factors { model, log_encoded, .. } => {
-                let rgb = model.to_rgb(v);
-                if *log_encoded {
-                    rgb.map(|x| x.exp() - DRR_EPS)
-                } else {
-                    rgb
-                }
-            }
-            Decoder::Bdi(_) => v,
+        let scale = self.light_scale[image];
+        let rgb = match &self.decoder {
+            Decoder::Factors { model, log_encoded, .. } => decode_channels(*model, *log_encoded, scale, v),
+            Decoder::Bdi(_) => v.map(|x| x * scale),
         };
-        rgb = rgb.map(|x| x * self.light_scale[image]);
         rgb.map(saturating_f16)
+    }
+
+    /// Whether the file holds factors (DFMF, FMF) rather than images (BDI).
+    pub fn is_factored(&self) -> bool {
+        matches!(self.decoder, Decoder::Factors { .. })
+    }
+
+    /// The crop as its factors (a DFMF or FMF file), with the decoding the images would go
+    /// through; an error for a file that holds images (BDI, see [`Window::is_factored`]).
+    pub fn into_factored(self) -> Result<FactoredStack> {
+        let (width, height) = (self.crop.width as usize, self.crop.height as usize);
+        match self.decoder {
+            Decoder::Factors { factors: Factors { image, pixel }, model, log_encoded } => FactoredStack::new(
+                &self.path,
+                (width, height),
+                self.pairs,
+                image,
+                pixel,
+                model,
+                log_encoded,
+                self.light_scale,
+            ),
+            Decoder::Bdi(_) => Err(Error::format(&self.path, "a BDI file holds images, not factors")),
+        }
+    }
+
+    /// Bytes of the factor rows this window holds in memory (0 for a BDI).
+    pub fn factor_bytes(&self) -> u64 {
+        match &self.decoder {
+            Decoder::Factors { factors, .. } => {
+                factors.image.iter().chain(&factors.pixel).map(|a| a.len() as u64 * 4).sum()
+            }
+            Decoder::Bdi(_) => 0,
+        }
     }
 
     fn pixels(&self) -> usize {
@@ -405,15 +444,6 @@ impl Window {
         progress.finish();
         Ok(())
     }
-}
-
-/// Rounds to f16, saturating at ±65504 (and NaN, which finite factors cannot produce but
-/// an overflowing colour model might, becomes 0).
-fn saturating_f16(x: f32) -> f16 {
-    if x.is_nan() {
-        return f16::ZERO;
-    }
-    f16::from_f32(x.clamp(-65504.0, 65504.0))
 }
 
 impl ImageSource for Window {

@@ -1,0 +1,228 @@
+//! Memory estimates before work: every stage of an analysis predicts its peak from the
+//! sizes it will touch, and an analysis that would not fit is refused with one line before
+//! anything is decoded or allocated.
+//!
+//! The budget is 80% of `MemAvailable` (/proc/meminfo), or what the environment variable
+//! `BTFSYNTH_MEMORY` says (`6G`, `512M`, `1500000000`; `unlimited` turns the check off).
+//! Estimates count the large arrays of each stage (images, bases, filter responses, the
+//! feature matrix k-means clusters, appearance vectors) and leave out what is small beside
+//! them; measured peaks are within about 20% of them (see `benches/big_btf.sh`).
+
+use super::pipeline::AnalysisParams;
+use super::pyramid::level_sizes;
+use crate::{Error, Result};
+use std::path::Path;
+
+/// One stage's predicted peak.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stage {
+    pub name: String,
+    pub bytes: u64,
+}
+
+pub use crate::btf::source::{memory_budget as budget, MEMORY_ENV};
+
+/// Sizes for messages: `3.2 GiB`, `640 MiB`.
+pub fn gib(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
+    } else {
+        format!("{:.0} MiB", (bytes as f64 / (1u64 << 20) as f64).ceil())
+    }
+}
+
+/// The stage with the largest peak.
+pub fn peak(stages: &[Stage]) -> Option<&Stage> {
+    stages.iter().max_by_key(|s| s.bytes)
+}
+
+/// Fails, naming `path`, the stage and the estimate, when the largest stage of `stages`
+/// would not fit in the budget; `what` says what was to be done ("analysing 400x400
+/// texels × 22801 images from the file's factors"), `advice` what to do instead.
+pub fn check(path: &Path, what: &str, stages: &[Stage], advice: &str) -> Result<()> {
+    let Some(stage) = peak(stages) else { return Ok(()) };
+    check_against(path, what, stage, advice, budget()?)
+}
+
+fn check_against(
+    path: &Path,
+    what: &str,
+    stage: &Stage,
+    advice: &str,
+    budget: Option<(u64, String)>,
+) -> Result<()> {
+    match budget {
+        Some((limit, source)) if stage.bytes > limit => Err(Error::format(
+            path,
+            format!(
+                "{what} would need about {} at its peak ({}), more than the {} budget ({source}); {advice}",
+                gib(stage.bytes),
+                stage.name,
+                gib(limit)
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Values of one level's texton stage: features, the responses waiting to be copied into
+/// them, the basis' components and the appearance vectors' work arrays.
+fn level_stage(texels: u64, rank: u64, params: &AnalysisParams, held: u64, images: u64) -> u64 {
+    let filters = params.filters.len() as u64;
+    let threads = rayon::current_num_threads() as u64;
+    let blocks = rank + 1;
+    let features = texels * blocks * 3 * filters * 4;
+    // A reduced level also holds its sketch, its orthonormal basis and its coordinates.
+    let reduction = match features / 4 > super::reduce::REDUCE_ABOVE as u64 {
+        true => 3 * texels * super::reduce::PROJECTED_DIMS as u64 * 4,
+        false => 0,
+    };
+    let responses = threads.min(blocks) * 3 * filters * texels * 4;
+    let components = blocks * texels * 3 * 4;
+    let dims = params.appearance_dims as u64;
+    let side = super::appearance::NEIGHBOURHOOD as u64;
+    let appearance = texels * (blocks * 3 * 4 * 2 + side * side * dims * 4 * 2);
+    // The images (or the low-rank rows) this level reads, the basis and its centred copy.
+    held + images + components + features + responses.max(appearance).max(reduction)
+}
+
+/// Stages of [`super::pipeline::analyze`] on `images` decoded images of `width × height`.
+pub fn decoded_stages(images: usize, (width, height): (usize, usize), params: &AnalysisParams) -> Vec<Stage> {
+    let n = images as u64;
+    let stack = n * (width * height * 3) as u64 * 2;
+    let mut stages = vec![Stage { name: "decoding the images".into(), bytes: stack }];
+    let d = (width * height * 3) as u64;
+    if images > params.selected {
+        // All images as f32 rows and their centred copy, for the selection's basis.
+        stages.push(Stage { name: "selecting representative images".into(), bytes: stack + 2 * n * d * 4 });
+    }
+    let selected = n.min(params.selected as u64);
+    let rank = params.basis_rank.min(images) as u64;
+    for (l, &(w, h)) in level_sizes(width, height, params.levels).iter().enumerate() {
+        let texels = (w * h) as u64;
+        // The selected images as f32 rows and their centred copy.
+        let level_images = 2 * selected * texels * 3 * 4;
+        stages.push(Stage {
+            name: format!("textons of level {l} ({w}x{h})"),
+            bytes: level_stage(texels, rank, params, stack, level_images),
+        });
+    }
+    stages
+}
+
+/// Stages of [`super::pipeline::analyze_low_rank`]: `images` images of `width × height`
+/// held as `rank` rows, with `held` bytes besides (the sample's factors); `streamed`
+/// gives the sketch columns and batch of a streamed basis.
+pub fn low_rank_stages(
+    images: usize,
+    rank: usize,
+    (width, height): (usize, usize),
+    params: &AnalysisParams,
+    held: u64,
+    streamed: Option<super::basis::StreamOptions>,
+) -> Vec<Stage> {
+    let (n, q) = (images as u64, rank as u64);
+    let d = (width * height * 3) as u64;
+    let rows = q * d * 4 + n * q * 4;
+    let mut stages = vec![Stage { name: "reading the factors".into(), bytes: held }];
+    if let Some(s) = streamed {
+        let l = s.rank.min(images) as u64;
+        // The sketch in f32, its orthonormalisation in f64, one batch as f32 and f16.
+        let sketch = d * l * (4 + 8) + s.batch as u64 * d * (4 + 2) * 2;
+        stages.push(Stage { name: "streaming a basis of the images".into(), bytes: held + sketch });
+    }
+    let filters = params.filters.len() as u64;
+    if images > params.selected {
+        let components = 64.min(q) * d * 4 * 2;
+        let responses = 3 * filters * (width * height) as u64 * 4 * 2;
+        stages.push(Stage {
+            name: "selecting representative images".into(),
+            bytes: held + rows + components + responses,
+        });
+    }
+    let rank_kept = params.basis_rank.min(images).min(rank.max(1)) as u64;
+    for (l, &(w, h)) in level_sizes(width, height, params.levels).iter().enumerate() {
+        let texels = (w * h) as u64;
+        let level_rows = q * texels * 3 * 4;
+        stages.push(Stage {
+            name: format!("textons of level {l} ({w}x{h})"),
+            bytes: level_stage(texels, rank_kept, params, held + rows, level_rows),
+        });
+    }
+    stages
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::source::parse_budget;
+
+    #[test]
+    fn budgets_parse_with_units_or_turn_off() {
+        assert_eq!(parse_budget("6G").unwrap().unwrap().0, 6 << 30);
+        assert_eq!(parse_budget("512M").unwrap().unwrap().0, 512 << 20);
+        assert_eq!(parse_budget("1.5GiB").unwrap().unwrap().0, 3 << 29);
+        assert_eq!(parse_budget("1000").unwrap().unwrap().0, 1000);
+        assert!(parse_budget("unlimited").unwrap().is_none());
+        for bad in ["", "-1G", "6X", "G"] {
+            assert!(parse_budget(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn an_absurd_declared_size_is_refused_without_allocating() {
+        // 100,000² texels × 22,801 images: the estimate alone says no, long before any
+        // array exists (a real attempt would need exabytes).
+        let params = AnalysisParams::default();
+        let stages = decoded_stages(22_801, (100_000, 100_000), &params);
+        let stage = peak(&stages).unwrap();
+        assert!(stage.bytes > 1 << 50, "{stage:?}");
+        let budget = Some((6u64 << 30, "BTFSYNTH_MEMORY=6G".to_string()));
+        let e = check_against(Path::new("huge.btf"), "analysing it", stage, "use --crop", budget)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("huge.btf: analysing it would need about"), "{e}");
+        assert!(e.contains("more than the 6.0 GiB budget (BTFSYNTH_MEMORY=6G)"), "{e}");
+        assert!(!e.contains('\n'), "{e}");
+        // The factor path of the same size is smaller but still refused.
+        let stages = low_rank_stages(22_801, 97, (100_000, 100_000), &params, 1 << 30, None);
+        let s = peak(&stages).unwrap();
+        assert!(s.bytes > 1 << 40 && s.name.starts_with("textons of level 0"), "{s:?}");
+    }
+
+    #[test]
+    fn the_factor_path_of_a_ubo2014_material_fits_where_decoding_does_not() {
+        let params = AnalysisParams::default();
+        let decoded = peak(&decoded_stages(22_801, (400, 400), &params)).unwrap().bytes;
+        let factors = peak(&low_rank_stages(22_801, 97, (400, 400), &params, 64 << 20, None)).unwrap().bytes;
+        assert!(decoded > 50 << 30, "{}", gib(decoded));
+        assert!(factors < 6 << 30, "{}", gib(factors));
+    }
+
+    #[test]
+    fn the_analysis_peak_counts_the_whole_stack_twice_only_when_representatives_are_chosen() {
+        let params = AnalysisParams::default();
+        // The UBO2014 case of issue #21, killed by the kernel at 24.3 GB: a 192² crop of
+        // 22,801 images holds them as f16 and, for the selection, as f32 rows twice.
+        let stages = decoded_stages(22_801, (192, 192), &params);
+        let stage = peak(&stages).unwrap();
+        let peak_gib = stage.bytes as f64 / (1u64 << 30) as f64;
+        assert!((22.0..25.0).contains(&peak_gib), "{peak_gib} GiB");
+        assert_eq!(stage.name, "selecting representative images");
+        let few = decoded_stages(256, (64, 64), &params);
+        assert!(few.iter().all(|s| s.name != "selecting representative images"), "{few:?}");
+    }
+
+    #[test]
+    fn an_analysis_beyond_the_budget_is_refused_naming_the_stack() {
+        let (path, advice) = (Path::new("big.btf"), "analyse a part with --crop x,y,w,h");
+        let budget = || Some((8u64 << 30, "80% of the 10.0 GiB available".to_string()));
+        let stage = |bytes: u64| Stage { name: "textons of level 0 (400x400)".into(), bytes };
+        let e =
+            check_against(path, "analysing it", &stage(20 << 30), advice, budget()).unwrap_err().to_string();
+        assert!(e.contains("big.btf") && e.contains("20.0 GiB") && e.contains("--crop"), "{e}");
+        assert!(check_against(path, "analysing it", &stage(4 << 30), advice, budget()).is_ok());
+        let no_figure = check_against(path, "analysing it", &stage(u64::MAX), advice, None);
+        assert!(no_figure.is_ok(), "no figure from the platform: no refusal");
+    }
+}
