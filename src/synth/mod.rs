@@ -13,6 +13,7 @@ pub mod candidates;
 pub mod constrained;
 pub mod engine;
 pub(crate) mod metric;
+pub mod patches;
 pub mod plane;
 pub mod recipe;
 pub mod round;

@@ -1,0 +1,438 @@
+//! Coarse-to-fine mapping with a priority queue (Soler et al. §2.2), the masks of §4.1 and
+//! the relaxation of §4.4.
+//!
+//! Level by level, coarse to fine, every cluster the level must cover waits in a priority
+//! queue: those with the most textured neighbouring regions first (then the flattest). A
+//! cluster is flattened ([`super::chart`]); if it is not a disc, folds, or its flattening
+//! error is over the limit, its children go to the next level. Otherwise its textured
+//! neighbours' faces within a band of the border are unfolded into its frame and drawn with
+//! their texture: the mask. The mask's best placement in the sample ([`super::fit`]) maps
+//! the cluster, if its error is under the threshold; else the children go to the next
+//! level. A cluster with no textured neighbour takes a random placement, which is how the
+//! mapping starts (at the coarsest level with a flat enough cluster, the flattest first)
+//! and how it restarts on a separate piece. Single faces are always mapped, with their best
+//! placement: the finest scale fills what is left as well as it can.
+
+use super::chart::{Chart, Flattening};
+use super::fit::{Fitter, Mask, Placement, Unplaced};
+use super::graph::{SurfaceGraph, NONE};
+use super::hierarchy::Hierarchy;
+use super::{LevelReport, SolerParams};
+use crate::progress::Progress;
+use crate::Result;
+use glam::{Affine2, Mat2, Vec2};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::time::Instant;
+
+/// The texture on the graph's faces.
+#[derive(Clone, Debug)]
+pub struct Mapping {
+    /// Per graph face, the cluster that textured it ([`NONE`] until one does).
+    pub mapped_by: Vec<u32>,
+    /// Per graph face, the sample coordinate (texels, centres at integers) of each corner.
+    pub face_uv: Vec<[Vec2; 3]>,
+}
+
+impl Mapping {
+    fn new(faces: usize) -> Mapping {
+        Mapping { mapped_by: vec![NONE; faces], face_uv: vec![[Vec2::ZERO; 3]; faces] }
+    }
+}
+
+/// What became of a cluster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Outcome {
+    Mapped { started: bool },
+    NotDisc,
+    Distorted,
+    TooLarge,
+    PoorFit,
+}
+
+/// A queue entry: more textured neighbours first, then the flatter, then the lower id.
+#[derive(Clone, Copy, PartialEq)]
+struct Key {
+    textured: u32,
+    flat: f32,
+    cluster: u32,
+}
+
+impl Eq for Key {}
+
+impl Ord for Key {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.textured
+            .cmp(&other.textured)
+            .then_with(|| other.flat.total_cmp(&self.flat))
+            .then_with(|| other.cluster.cmp(&self.cluster))
+    }
+}
+
+impl PartialOrd for Key {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Everything one mapping reads.
+pub(super) struct Mapper<'a> {
+    pub graph: &'a SurfaceGraph,
+    pub hierarchy: &'a Hierarchy,
+    pub flattening: &'a Flattening,
+    pub fitter: &'a Fitter,
+    pub params: &'a SolerParams,
+}
+
+impl Mapper<'_> {
+    /// Maps every face, reporting per level.
+    pub fn run(&self, rng: &mut ChaCha8Rng, progress: &dyn Progress) -> Result<(Mapping, Vec<LevelReport>)> {
+        let (graph, h) = (self.graph, self.hierarchy);
+        let mut mapping = Mapping::new(graph.face_count());
+        let mut reports = Vec::new();
+        let mut eligible: Vec<u32> = h.levels[0].clone();
+        progress.start("mapping patches", graph.face_count() as u64);
+        for (l, level) in h.levels.iter().enumerate() {
+            let started = Instant::now();
+            let mut report = LevelReport { level: l, clusters: level.len(), ..LevelReport::default() };
+            if eligible.is_empty() {
+                report.seconds = started.elapsed().as_secs_f64();
+                reports.push(report);
+                continue;
+            }
+            let charts: HashMap<u32, Option<Chart>> =
+                eligible.par_iter().map(|&c| (c, self.flattening.chart(graph, h, c))).collect();
+            let flat = |c: u32| charts[&c].as_ref().map_or(f32::INFINITY, |ch| ch.flat_error);
+            let mut pending: HashMap<u32, bool> = eligible.iter().map(|&c| (c, true)).collect();
+            let mut heap: BinaryHeap<Key> = eligible
+                .iter()
+                .map(|&c| Key { textured: self.textured_neighbours(c, &mapping), flat: flat(c), cluster: c })
+                .collect();
+            let mut next = Vec::new();
+            let mut errors: Vec<f32> = Vec::new();
+            while let Some(key) = heap.pop() {
+                let c = key.cluster;
+                if pending.get(&c) != Some(&true) {
+                    continue;
+                }
+                let textured = self.textured_neighbours(c, &mapping);
+                if textured != key.textured {
+                    heap.push(Key { textured, ..key });
+                    continue;
+                }
+                pending.insert(c, false);
+                report.tried += 1;
+                let (outcome, error) = self.process(c, charts[&c].as_ref(), &mut mapping, rng)?;
+                errors.extend(error);
+                match outcome {
+                    Outcome::Mapped { started } => {
+                        report.mapped += 1;
+                        report.started += usize::from(started);
+                        let faces = h.clusters[c as usize].faces.len();
+                        report.faces += faces;
+                        progress.advance(faces as u64);
+                        for &n in &h.clusters[c as usize].neighbours {
+                            if pending.get(&n) == Some(&true) {
+                                let textured = self.textured_neighbours(n, &mapping);
+                                heap.push(Key { textured, flat: flat(n), cluster: n });
+                            }
+                        }
+                    }
+                    refused => {
+                        match refused {
+                            Outcome::NotDisc => report.not_disc += 1,
+                            Outcome::Distorted => report.distorted += 1,
+                            Outcome::TooLarge => report.too_large += 1,
+                            _ => report.poor_fit += 1,
+                        }
+                        next.extend_from_slice(&h.clusters[c as usize].children);
+                    }
+                }
+            }
+            errors.sort_by(f32::total_cmp);
+            report.median_fit_error = errors.get(errors.len() / 2).copied().unwrap_or(f32::NAN);
+            report.seconds = started.elapsed().as_secs_f64();
+            reports.push(report);
+            eligible = next;
+        }
+        progress.finish();
+        debug_assert!(mapping.mapped_by.iter().all(|&c| c != NONE));
+        Ok((mapping, reports))
+    }
+
+    /// How many distinct textured regions border cluster `c`.
+    fn textured_neighbours(&self, c: u32, mapping: &Mapping) -> u32 {
+        let (graph, h) = (self.graph, self.hierarchy);
+        let cluster = &h.clusters[c as usize];
+        let owner = &h.owner[cluster.level as usize];
+        let mut regions: Vec<u32> = cluster
+            .faces
+            .iter()
+            .flat_map(|&f| graph.across[f as usize])
+            .filter(|&g| g != NONE && owner[g as usize] != c)
+            .map(|g| mapping.mapped_by[g as usize])
+            .filter(|&m| m != NONE)
+            .collect();
+        regions.sort_unstable();
+        regions.dedup();
+        regions.len() as u32
+    }
+
+    /// Steps 2–4 of §2.2 for cluster `c`.
+    /// Returns the outcome and the fitting error (as a fraction of a random placement's) if
+    /// the cluster was fitted.
+    fn process(
+        &self,
+        c: u32,
+        chart: Option<&Chart>,
+        mapping: &mut Mapping,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<(Outcome, Option<f32>)> {
+        let cluster = &self.hierarchy.clusters[c as usize];
+        let Some(chart) = chart.filter(|_| cluster.disc) else { return Ok((Outcome::NotDisc, None)) };
+        let single = cluster.is_face();
+        if !single && (chart.folds > 0 || chart.flat_error > self.params.max_flat_error) {
+            return Ok((Outcome::Distorted, None));
+        }
+        // The chart in texels, turned by a random angle so that the fixed rotations of the
+        // sample do not include the trivial continuation of a neighbour (§4.2).
+        let turn = Mat2::from_angle(rng.random_range(0.0..std::f32::consts::TAU)) * self.params.texels_per_unit;
+        let local: Vec<Vec2> = chart.vertices.iter().map(|&(_, p)| turn * p).collect();
+        if !single && !self.may_fit(&local) {
+            return Ok((Outcome::TooLarge, None));
+        }
+        let band = if self.params.matching { self.band(c, chart, &local, mapping) } else { Vec::new() };
+        let footprint = || local.iter().map(|&p| mirror(p));
+        let (lo, hi) = bounds(footprint().chain(band.iter().flat_map(|(_, p)| p.map(mirror))));
+        let origin = (lo - Vec2::ONE).floor();
+        let mask = (!band.is_empty()).then(|| self.mask(&band, origin, hi, mapping)).filter(|m| m.count() > 0);
+        let fitted = match &mask {
+            Some(mask) => Some(self.fitter.fit(mask)?),
+            None => None,
+        };
+        let (placement, origin, started) = match fitted {
+            Some(Ok(p)) if single || p.error / 2.0 <= self.params.max_fit_error => (p, origin, false),
+            Some(Ok(p)) => return Ok((Outcome::PoorFit, Some(p.error / 2.0))),
+            Some(Err(Unplaced::TooLarge)) if !single => return Ok((Outcome::TooLarge, None)),
+            // No textured neighbour (or a single face too large to match): a random placement.
+            _ => {
+                let (lo, hi) = bounds(footprint());
+                match self.random_placement(lo, hi, rng) {
+                    Some(p) => (p, lo, true),
+                    None if single => (self.forced_placement(lo, hi), lo, true),
+                    None => return Ok((Outcome::TooLarge, None)),
+                }
+            }
+        };
+        // Chart texels → mask pixels → sample.
+        let to_mask = Affine2::from_translation(-origin) * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)));
+        let mut to_sample = self.fitter.to_sample(&placement) * to_mask;
+        let image = &self.fitter.image;
+        if image.tileable {
+            // Keep coordinates near the sample: whole periods change nothing.
+            let centre = local.iter().copied().sum::<Vec2>() / local.len().max(1) as f32;
+            let s = to_sample.transform_point2(centre);
+            let (w, h) = (image.width as f32, image.height as f32);
+            to_sample.translation -= Vec2::new((s.x / w).floor() * w, (s.y / h).floor() * h);
+        }
+        let mut uv: Vec<Vec2> = local.iter().map(|&p| to_sample.transform_point2(p)).collect();
+        if self.params.relax && !band.is_empty() && !single {
+            super::relax::relax(self, c, chart, &mut uv, mapping, rng);
+        }
+        for (&f, corners) in cluster.faces.iter().zip(&chart.corners) {
+            mapping.mapped_by[f as usize] = c;
+            mapping.face_uv[f as usize] = corners.map(|i| uv[i as usize]);
+        }
+        let error = (!started).then_some(placement.error / 2.0);
+        Ok((Outcome::Mapped { started }, error))
+    }
+
+    /// Whether a footprint (chart vertices in texels) could lie inside the sample at some
+    /// rotation: its shorter side within the sample's longer, its longer within the
+    /// diagonal (a tileable sample takes up to its own size).
+    fn may_fit(&self, local: &[Vec2]) -> bool {
+        let (lo, hi) = bounds(local.iter().copied());
+        let size = hi - lo;
+        let image = &self.fitter.image;
+        let (w, h) = (image.width as f32, image.height as f32);
+        let (short, long) = (size.x.min(size.y), size.x.max(size.y));
+        short <= w.max(h) && long <= (w * w + h * h).sqrt()
+    }
+
+    /// A random placement of a footprint spanning `lo..hi` (mask pixels) with the
+    /// footprint inside the sample, at one of the fitter's rotations.
+    fn random_placement(&self, lo: Vec2, hi: Vec2, rng: &mut ChaCha8Rng) -> Option<Placement> {
+        let size = (hi - lo).ceil() + Vec2::ONE;
+        let (mw, mh) = (size.x as usize, size.y as usize);
+        let count = self.fitter.rotation_count();
+        let first = rng.random_range(0..count);
+        for k in (0..count).map(|i| (first + i) % count) {
+            let rows = self.fitter.positions(k, mw, mh);
+            let total: i64 = rows.iter().map(|&(a, b)| (b - a + 1).max(0)).sum();
+            if total <= 0 {
+                continue;
+            }
+            let mut pick = rng.random_range(0..total);
+            for (y, &(a, b)) in rows.iter().enumerate() {
+                let n = (b - a + 1).max(0);
+                if pick < n {
+                    return Some(Placement { rotation: k, position: ((a + pick) as usize, y), error: 0.0 });
+                }
+                pick -= n;
+            }
+        }
+        None
+    }
+
+    /// A face larger than the sample allows: at the sample's middle, unturned.
+    fn forced_placement(&self, lo: Vec2, hi: Vec2) -> Placement {
+        let image = &self.fitter.image;
+        let middle = Vec2::new(image.width as f32, image.height as f32) / 2.0 - (hi - lo) / 2.0;
+        let fallback = Placement { rotation: 0, position: (0, 0), error: 0.0 };
+        let shift = self.fitter.to_sample(&fallback).transform_point2(Vec2::ZERO);
+        let at = (middle - shift).max(Vec2::ZERO);
+        Placement { rotation: 0, position: (at.x as usize, at.y as usize), error: 0.0 }
+    }
+
+    /// Textured faces outside cluster `c` within the band width of its border, unfolded
+    /// into its frame (`local`: the chart's vertices in texels): (face, corner positions).
+    pub(super) fn band(&self, c: u32, chart: &Chart, local: &[Vec2], mapping: &Mapping) -> Vec<(u32, [Vec2; 3])> {
+        let (graph, h) = (self.graph, self.hierarchy);
+        let cluster = &h.clusters[c as usize];
+        let owner = &h.owner[cluster.level as usize];
+        let outside = |g: u32| g != NONE && owner[g as usize] != c && mapping.mapped_by[g as usize] != NONE;
+        let width = self.params.band / self.params.texels_per_unit;
+        // Geodesic distance from the border over textured faces outside (Dijkstra).
+        let mut dist: HashMap<u32, f32> = cluster.border.iter().map(|&v| (v, 0.0)).collect();
+        let mut heap: BinaryHeap<(std::cmp::Reverse<u32>, u32)> =
+            cluster.border.iter().map(|&v| (std::cmp::Reverse(0), v)).collect();
+        while let Some((std::cmp::Reverse(bits), v)) = heap.pop() {
+            let d = f32::from_bits(bits);
+            if d > dist[&v] || d > width {
+                continue;
+            }
+            for &g in graph.faces_of(v) {
+                if !outside(g) {
+                    continue;
+                }
+                for &w in &graph.corners[g as usize] {
+                    let nd = d + graph.positions[v as usize].distance(graph.positions[w as usize]);
+                    if dist.get(&w).is_none_or(|&old| nd < old) {
+                        dist.insert(w, nd);
+                        heap.push((std::cmp::Reverse(nd.to_bits()), w));
+                    }
+                }
+            }
+        }
+        let mut placed: HashMap<u32, Vec2> =
+            chart.vertices.iter().zip(local).map(|(&(v, _), &p)| (v, p)).collect();
+        let mut queue: VecDeque<u32> = VecDeque::new();
+        let mut seen: HashMap<u32, ()> = HashMap::new();
+        for &f in &cluster.faces {
+            for &g in &graph.across[f as usize] {
+                if outside(g) && seen.insert(g, ()).is_none() {
+                    queue.push_back(g);
+                }
+            }
+        }
+        let scale = self.params.texels_per_unit;
+        let mut band = Vec::new();
+        while let Some(g) = queue.pop_front() {
+            let t = graph.corners[g as usize];
+            let known: Vec<bool> = t.iter().map(|v| placed.contains_key(v)).collect();
+            match known.iter().filter(|&&k| k).count() {
+                3 => {}
+                2 => {
+                    let k = (0..3).find(|&k| known[k] && known[(k + 1) % 3]).unwrap_or(0);
+                    let (a, b, apex) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    let p = |v: u32| graph.positions[v as usize];
+                    let (la, lb) = (p(a).distance(p(apex)) * scale, p(b).distance(p(apex)) * scale);
+                    let at = unfold(placed[&a], placed[&b], la, lb);
+                    placed.insert(apex, at);
+                }
+                _ => continue,
+            }
+            if t.iter().all(|v| dist.get(v).is_none_or(|&d| d > width)) {
+                continue;
+            }
+            band.push((g, t.map(|v| placed[&v])));
+            for &n in &graph.across[g as usize] {
+                if outside(n) && seen.insert(n, ()).is_none() {
+                    queue.push_back(n);
+                }
+            }
+        }
+        band
+    }
+
+    /// The band drawn in mask pixels (chart texels mirrored to image rows, minus `origin`)
+    /// with the neighbours' texture.
+    fn mask(&self, band: &[(u32, [Vec2; 3])], origin: Vec2, hi: Vec2, mapping: &Mapping) -> Mask {
+        let image = &self.fitter.image;
+        let size = (hi - origin).ceil() + Vec2::splat(2.0);
+        let (w, h) = (size.x.max(1.0) as usize, size.y.max(1.0) as usize);
+        let channels = image.channels;
+        let mut values = vec![0f32; channels * w * h];
+        let mut support = vec![0f32; w * h];
+        let mut value = vec![0f32; channels];
+        for (g, corners) in band {
+            let p = corners.map(|c| mirror(c) - origin);
+            let uv = mapping.face_uv[*g as usize];
+            raster(&p, w, h, |x, y, b| {
+                let o = y * w + x;
+                if support[o] > 0.0 {
+                    return;
+                }
+                support[o] = 1.0;
+                image.sample(b[0] * uv[0] + b[1] * uv[1] + b[2] * uv[2], &mut value);
+                for ch in 0..channels {
+                    values[ch * w * h + o] = value[ch];
+                }
+            });
+        }
+        Mask { width: w, height: h, values, support }
+    }
+}
+
+/// Chart texels (counter-clockwise, y up) to image orientation (rows down).
+pub(super) fn mirror(p: Vec2) -> Vec2 {
+    Vec2::new(p.x, -p.y)
+}
+
+fn bounds(points: impl Iterator<Item = Vec2>) -> (Vec2, Vec2) {
+    points.fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(p), hi.max(p)))
+}
+
+/// The apex of a triangle on the left of `a → b` with sides `la` (to a) and `lb` (to b).
+pub(super) fn unfold(a: Vec2, b: Vec2, la: f32, lb: f32) -> Vec2 {
+    let d = a.distance(b).max(f32::MIN_POSITIVE);
+    let u = (b - a) / d;
+    let along = (la * la - lb * lb + d * d) / (2.0 * d);
+    let height = (la * la - along * along).max(0.0).sqrt();
+    a + along * u + height * u.perp()
+}
+
+/// Calls `pixel(x, y, barycentric)` for every pixel centre of a `w × h` frame inside
+/// triangle `p`.
+pub(super) fn raster(p: &[Vec2; 3], w: usize, h: usize, mut pixel: impl FnMut(usize, usize, [f32; 3])) {
+    let lo = p[0].min(p[1]).min(p[2]).ceil().max(Vec2::ZERO);
+    let hi = p[0].max(p[1]).max(p[2]).floor().min(Vec2::new(w as f32 - 1.0, h as f32 - 1.0));
+    let d = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+    if d.abs() < 1e-12 || lo.x > hi.x || lo.y > hi.y {
+        return;
+    }
+    for y in lo.y as usize..=hi.y as usize {
+        for x in lo.x as usize..=hi.x as usize {
+            let q = Vec2::new(x as f32, y as f32);
+            let b1 = (q - p[0]).perp_dot(p[2] - p[0]) / d;
+            let b2 = (p[1] - p[0]).perp_dot(q - p[0]) / d;
+            let b0 = 1.0 - b1 - b2;
+            if b0 >= -1e-4 && b1 >= -1e-4 && b2 >= -1e-4 {
+                pixel(x, y, [b0, b1, b2]);
+            }
+        }
+    }
+}
