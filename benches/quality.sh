@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
-# The synthesis-quality benchmark (examples/quality.rs): btfsynth beside Embark's
-# texture-synthesis on every photograph of ../shared/data/textures and on generated BTFs.
-# Installs the peer into target/peer (the first time: a few minutes), builds btfsynth in
-# release, and writes bench-out/quality/quality.md plus one montage per sample.
+# The synthesis-quality benchmark (examples/quality.rs): btfsynth beside two peers, Embark's
+# texture-synthesis and Resynthesizer (the C engine of GIMP's plug-in), on every photograph
+# of ../shared/data/textures and on generated BTFs. Installs the peers into target/peer (the
+# first time: a few minutes): Embark's with cargo, Resynthesizer with pip into a venv.
+# Resynthesizer is GPL: it is only ever run as an outside program (scripts/resynth_peer.py),
+# never linked or shipped. Writes bench-out/quality/quality.md plus one montage per sample
+# (sample | Embark | Resynthesizer | btfsynth).
 #   benches/quality.sh [--seeds N] [--only NAME] [--out DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,5 +14,11 @@ if [ ! -x "$peer" ]; then
   # Without --locked the peer does not compile with today's crates.
   cargo install --locked texture-synthesis-cli --root target/peer
 fi
+venv=target/peer/resynth-venv
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import resynthesizer' 2>/dev/null; then
+  python3 -m venv "$venv"
+  "$venv/bin/pip" install -q resynthesizer pillow
+fi
 cargo build --release
-cargo run --release --example quality -- --peer "$peer" "$@"
+cargo run --release --example quality -- --peer "$peer" \
+  --resynth "$venv/bin/python scripts/resynth_peer.py" "$@"

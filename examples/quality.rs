@@ -1,13 +1,20 @@
-//! The synthesis-quality benchmark: btfsynth (defaults) beside Embark's `texture-synthesis`
-//! (defaults) on every photograph of `../shared/data/textures` (a 128² crop → 512²) and on
-//! generated BTFs (`gen pebbles|weave|bricks`, 64² → 256²), with wall time, CPU time, peak
-//! memory and every quality measure of `btfsynth eval`, one table and one montage per sample
-//! (sample | Embark | btfsynth). Not a test: figures are reported, never asserted.
+//! The synthesis-quality benchmark: btfsynth (defaults) beside two peers, Embark's
+//! `texture-synthesis` and Resynthesizer (the engine of GIMP's plug-in), all on defaults, on
+//! every photograph of `../shared/data/textures` (a 128² crop → 512²) and on generated BTFs
+//! (`gen pebbles|weave|bricks`, 64² → 256²), with wall time, CPU time, peak memory and every
+//! quality measure of `btfsynth eval` (repetition included), one table and one montage per
+//! sample (sample | Embark | Resynthesizer | btfsynth). Not a test: figures are reported,
+//! never asserted.
 //!
 //! ```text
-//! benches/quality.sh            # installs the peer into target/peer, then runs this
-//! cargo run --release --example quality -- --peer PATH [--out DIR] [--seeds N] [--only NAME]
+//! benches/quality.sh            # installs the peers into target/peer, then runs this
+//! cargo run --release --example quality -- --peer PATH [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME]
 //! ```
+//!
+//! `--resynth` is a command (its words split on spaces) that takes `SAMPLE.png OUT.png SIDE`
+//! (`scripts/resynth_peer.py` under a Python that has the `resynthesizer` package); without
+//! it the Resynthesizer column is left out. Resynthesizer is GPL and only ever run as that
+//! outside program.
 //!
 //! btfsynth runs as its release binary (`target/release/btfsynth`), the peer as given; each
 //! run is timed through `wait4` in a small re-executed copy of this program (Linux counts
@@ -50,6 +57,7 @@ struct Row {
 
 struct Options {
     peer: PathBuf,
+    resynth: Option<String>,
     out: PathBuf,
     seeds: u64,
     only: Option<String>,
@@ -69,6 +77,7 @@ fn main() {
 fn options() -> Options {
     let mut o = Options {
         peer: PathBuf::from("texture-synthesis"),
+        resynth: None,
         out: "bench-out/quality".into(),
         seeds: 1,
         only: None,
@@ -78,6 +87,7 @@ fn options() -> Options {
         let mut value = || args.next().unwrap_or_else(|| usage(&format!("{a} needs a value")));
         match a.as_str() {
             "--peer" => o.peer = value().into(),
+            "--resynth" => o.resynth = Some(value()),
             "--out" => o.out = value().into(),
             "--seeds" => o.seeds = value().parse().unwrap_or_else(|_| usage("--seeds takes a number")),
             "--only" => o.only = Some(value()),
@@ -88,7 +98,7 @@ fn options() -> Options {
 }
 
 fn usage(message: &str) -> ! {
-    eprintln!("error: {message}\nusage: quality [--peer PATH] [--out DIR] [--seeds N] [--only NAME]");
+    eprintln!("error: {message}\nusage: quality [--peer PATH] [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME]");
     std::process::exit(2);
 }
 
@@ -190,13 +200,39 @@ fn sample_rows(
     }
     let peer = peer_row(o, name, &sample, side, dir, tileable)?;
     rows.push(peer);
-    montage(
-        &sample,
-        &dir.join("btfsynth-0/result.png"),
-        &dir.join("embark.png"),
-        &o.out.join(format!("montage-{name}.png")),
-    )?;
+    let mut pictures = vec![dir.join("embark.png")];
+    if let Some(command) = &o.resynth {
+        rows.push(resynth_row(command, name, &sample, side, dir, tileable)?);
+        pictures.push(dir.join("resynthesizer.png"));
+    }
+    pictures.push(dir.join("btfsynth-0/result.png"));
+    montage(&sample, &pictures, &o.out.join(format!("montage-{name}.png")))?;
     Ok(rows)
+}
+
+/// Resynthesizer through `command SAMPLE OUT SIDE` on the head-on sample image (no
+/// coordinate map: it reports none).
+fn resynth_row(
+    command: &str,
+    name: &str,
+    sample: &Picture,
+    side: usize,
+    dir: &Path,
+    tileable: bool,
+) -> Result<Row> {
+    let (input, out) = (dir.join("sample.png"), dir.join("resynthesizer.png"));
+    save(sample, &input)?;
+    let mut words = command.split_whitespace();
+    let program = words.next().ok_or("--resynth is empty")?;
+    let (ok, cost) = timed(Command::new(program).args(words).arg(&input).arg(&out).arg(side.to_string()))?;
+    ok.then_some(()).ok_or(format!("Resynthesizer on {name} failed"))?;
+    Ok(Row {
+        sample: name.into(),
+        tool: "Resynthesizer".into(),
+        cost,
+        picture: picture_quality(&load(&out)?, sample, tileable),
+        coords: None,
+    })
 }
 
 /// Embark's texture-synthesis on the head-on sample image, and its coordinate map recovered
@@ -325,12 +361,12 @@ fn save(picture: &Picture, path: &Path) -> Result<()> {
     .map_err(|e| e.to_string())
 }
 
-/// sample (1:1) | Embark | btfsynth, 8 white pixels apart.
-fn montage(sample: &Picture, ours: &Path, peer: &Path, out: &Path) -> Result<()> {
+/// sample (1:1) | each of `results`, 8 white pixels apart.
+fn montage(sample: &Picture, results: &[PathBuf], out: &Path) -> Result<()> {
     let tmp = out.with_extension("sample.png");
     save(sample, &tmp)?;
-    let pictures: Vec<image::RgbImage> = [tmp.as_path(), peer, ours]
-        .iter()
+    let pictures: Vec<image::RgbImage> = std::iter::once(&tmp)
+        .chain(results)
         .map(|p| image::open(p).map(|i| i.to_rgb8()).map_err(|e| format!("{}: {e}", p.display())))
         .collect::<Result<_>>()?;
     let _ = std::fs::remove_file(&tmp);
@@ -347,7 +383,7 @@ fn montage(sample: &Picture, ours: &Path, peer: &Path, out: &Path) -> Result<()>
 
 fn table(rows: &[Row]) -> String {
     let mut t = String::from(
-        "| sample | tool | wall s | CPU s | peak MB | patch energy | coarse | colour χ² | contrast | collapse | smear | copy |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| sample | tool | wall s | CPU s | peak MB | patch energy | coarse | colour χ² | contrast | repetition | unused | use spread | collapse | smear | copy |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (p, c) = (&r.picture, r.coords);
@@ -355,7 +391,7 @@ fn table(rows: &[Row]) -> String {
             |f: fn(&CoordQuality) -> f64| c.as_ref().map_or("–".to_string(), |c| format!("{:.4}", f(c)));
         let _ = writeln!(
             t,
-            "| {} | {} | {:.1} | {:.1} | {:.0} | {:.5} | {:.5} | {:.4} | {:.3} | {} | {} | {} |",
+            "| {} | {} | {:.1} | {:.1} | {:.0} | {:.5} | {:.5} | {:.4} | {:.3} | {:.3} | {:.3} | {:.2} | {} | {} | {} |",
             r.sample,
             r.tool,
             r.cost.wall,
@@ -365,6 +401,9 @@ fn table(rows: &[Row]) -> String {
             p.patch_energy_coarse,
             p.colour_chi2,
             p.contrast,
+            p.repetition.repetition,
+            p.repetition.unused,
+            p.repetition.use_spread,
             coord(|c| c.collapse),
             coord(|c| c.smear),
             coord(|c| c.copy)

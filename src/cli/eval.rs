@@ -109,6 +109,13 @@ fn print_table(args: &EvalArgs, e: &Evaluation) {
             p.probe.name, p.probe.view[0], p.probe.view[1], p.probe.light[0], p.probe.light[1],
             q.patch_energy, q.patch_energy_coarse, q.colour_chi2, q.contrast
         );
+        let r = &q.repetition;
+        if r.repetition.is_finite() {
+            println!(
+                "    repetition {:.3} (strongest at {},{} px), unused sample {:.3}, use spread {:.2}",
+                r.repetition, r.repeat_offset[0], r.repeat_offset[1], r.unused, r.use_spread
+            );
+        }
         if let Some(seam) = p.wrap_seam_energy {
             println!("    across the wrap edge (tileable output): patch energy {seam:.5}");
         }

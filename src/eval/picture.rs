@@ -5,6 +5,7 @@
 //! Texton-space figures can look perfect on a broken result (a smear of one texel, a
 //! featureless blur); these cannot, because they compare what is seen.
 
+use super::repetition::{repetition, Repetition};
 use serde::Serialize;
 
 /// An RGB picture, row-major, sRGB-encoded values in [0, 1].
@@ -81,6 +82,10 @@ pub struct PictureQuality {
     /// Standard deviation of the result's luma over the sample's: 1 keeps the sample's
     /// contrast, below 1 is washed out (blur, collapse onto flat texels).
     pub contrast: f64,
+    /// How strongly sample places recur at regular offsets, and how evenly the sample is
+    /// used ([`super::repetition`]).
+    #[serde(flatten)]
+    pub repetition: Repetition,
 }
 
 /// Side of the patches compared.
@@ -92,17 +97,20 @@ pub const PATCH_STRIDE: usize = 4;
 /// may cross its border.
 pub fn picture_quality(result: &Picture, sample: &Picture, tileable: bool) -> PictureQuality {
     let (result_half, sample_half) = (result.half(), sample.half());
+    let positions = patch_positions(result, PATCH_STRIDE, false);
+    let nearest = nearest_patches(&patch_matrix(result, &positions), sample, tileable);
+    let sources: Vec<u32> = nearest.iter().map(|n| n.0).collect();
     PictureQuality {
-        patch_energy: patch_energy(result, sample, PATCH_STRIDE, tileable),
+        patch_energy: mean_energy(&nearest),
         patch_energy_coarse: patch_energy(&result_half, &sample_half, PATCH_STRIDE / 2, tileable),
         colour_chi2: colour_chi2(result, sample),
         contrast: contrast(result, sample),
+        repetition: repetition(result, &positions, &sources, sample, tileable),
     }
 }
 
 /// Mean nearest-patch squared difference per value (see [`PictureQuality::patch_energy`]).
-/// Exact nearest neighbours: ‖q − s‖² = ‖q‖² + ‖s‖² − 2 q·s with the products as one matrix
-/// product per block of result patches. NaN if either picture is smaller than a patch.
+/// NaN if either picture is smaller than a patch.
 pub fn patch_energy(result: &Picture, sample: &Picture, stride: usize, tileable: bool) -> f64 {
     let positions = patch_positions(result, stride.max(1), false);
     nearest_patch_energy(&patch_matrix(result, &positions), sample, tileable)
@@ -122,17 +130,38 @@ pub fn wrap_seam_energy(result: &Picture, sample: &Picture, tileable: bool) -> f
 /// out) of the squared difference per value to the nearest patch of `sample`. NaN when
 /// there are no queries or the sample is smaller than a patch.
 pub(crate) fn nearest_patch_energy(queries: &ndarray::Array2<f32>, sample: &Picture, tileable: bool) -> f64 {
-    let sample_positions = patch_positions(sample, 1, tileable);
-    if sample_positions.is_empty() || queries.nrows() == 0 {
+    mean_energy(&nearest_patches(queries, sample, tileable))
+}
+
+/// The mean per value of the nearest patches' squared differences (NaN for none).
+fn mean_energy(nearest: &[(u32, f64)]) -> f64 {
+    if nearest.is_empty() {
         return f64::NAN;
+    }
+    let values = (PATCH_SIDE * PATCH_SIDE * 3) as f64;
+    nearest.iter().map(|n| n.1).sum::<f64>() / (nearest.len() as f64 * values)
+}
+
+/// Per row of `queries`, the nearest patch of `sample` (an index into its
+/// [`patch_positions`], wrapping when `tileable`) and its summed squared difference. Exact
+/// nearest neighbours: ‖q − s‖² = ‖q‖² + ‖s‖² − 2 q·s with the products as one matrix
+/// product per block of queries. Empty when the sample is smaller than a patch.
+pub(crate) fn nearest_patches(
+    queries: &ndarray::Array2<f32>,
+    sample: &Picture,
+    tileable: bool,
+) -> Vec<(u32, f64)> {
+    let sample_positions = patch_positions(sample, 1, tileable);
+    if sample_positions.is_empty() {
+        return Vec::new();
     }
     let samples = patch_matrix(sample, &sample_positions);
     let sample_norms: Vec<f32> = samples.rows().into_iter().map(|r| r.dot(&r)).collect();
     // The expansion finds the nearest patch; its distance is then summed exactly, since
     // ‖q‖² + ‖s‖² − 2 q·s cancels badly when the two are close.
-    let total: f64 = queries
+    queries
         .axis_chunks_iter(ndarray::Axis(0), 1024)
-        .map(|block| {
+        .flat_map(|block| {
             let products = block.dot(&samples.t());
             block
                 .rows()
@@ -144,16 +173,16 @@ pub(crate) fn nearest_patch_energy(queries: &ndarray::Array2<f32>, sample: &Pict
                             (sample_norms[a] - 2.0 * row[a]).total_cmp(&(sample_norms[b] - 2.0 * row[b]))
                         })
                         .unwrap_or(0);
-                    q.iter().zip(samples.row(nearest)).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>()
+                    let d = q.iter().zip(samples.row(nearest)).map(|(a, b)| ((a - b) as f64).powi(2)).sum();
+                    (nearest as u32, d)
                 })
-                .sum::<f64>()
+                .collect::<Vec<_>>()
         })
-        .sum();
-    total / (queries.nrows() * queries.ncols()) as f64
+        .collect()
 }
 
 /// Top-left corners of the patches of `picture`: inside it, or everywhere when it wraps.
-fn patch_positions(picture: &Picture, stride: usize, wraps: bool) -> Vec<(usize, usize)> {
+pub(crate) fn patch_positions(picture: &Picture, stride: usize, wraps: bool) -> Vec<(usize, usize)> {
     let (w, h) = if wraps {
         (picture.width, picture.height)
     } else {
@@ -166,7 +195,7 @@ fn patch_positions(picture: &Picture, stride: usize, wraps: bool) -> Vec<(usize,
 }
 
 /// One row per patch: its 7×7×3 values (wrapping around the picture's edges).
-fn patch_matrix(picture: &Picture, positions: &[(usize, usize)]) -> ndarray::Array2<f32> {
+pub(crate) fn patch_matrix(picture: &Picture, positions: &[(usize, usize)]) -> ndarray::Array2<f32> {
     let dims = PATCH_SIDE * PATCH_SIDE * 3;
     let mut m = ndarray::Array2::zeros((positions.len(), dims));
     for (mut row, &(x, y)) in m.rows_mut().into_iter().zip(positions) {

@@ -6,6 +6,7 @@ use super::picture::{
     colour_chi2, contrast, nearest_patch_energy, picture_quality, wrap_seam_energy, Picture, PictureQuality,
     PATCH_SIDE, PATCH_STRIDE,
 };
+use super::repetition::Repetition;
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
 use crate::synth::engine::State;
@@ -98,6 +99,8 @@ pub fn evaluate_surface(
                 patch_energy_coarse: f64::NAN,
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
+                // A surface has no image-space offsets; its renders are scored as pictures.
+                repetition: Repetition::NAN,
             };
             ProbeQuality { probe, quality, wrap_seam_energy: None }
         })

@@ -114,7 +114,10 @@ pub fn synthesize(
             (Start::Inherit, Some(coarse)) => start::inherit(target, coarse, level_sample, r),
             (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
             (Start::Patches { radius }, _) => {
-                let patch = (radius * level_sample.width.min(level_sample.height) as f32).max(1.0);
+                // A patch narrower than the template is all seam: the templates that judge
+                // its placement mostly see its neighbours (and a small periodic sample's
+                // phases then never line up).
+                let patch = (radius * level_sample.width.min(level_sample.height) as f32).max((r + 1) as f32);
                 let search = capped(
                     recipe.passes.first().map_or(params.search, |p| pass_search(p, params.search)),
                     level_sample,

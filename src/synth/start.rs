@@ -32,8 +32,9 @@ pub fn random_texel(sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -
 }
 
 /// Coherent patches (beyond the paper; after the "chaos mosaic" of Xu, Guo and Shum 2000 and
-/// the image quilting of Efros and Freeman 2001): seeds at least `patch_radius` texels apart
-/// cover the level, every vertex joins its nearest seed along the surface, and each patch
+/// the image quilting of Efros and Freeman 2001): seeds about `patch_radius` texels apart
+/// (each a random spacing, [`SPACING_SPREAD`]) cover the level, every vertex joins its
+/// nearest seed along the surface, and each patch
 /// copies a piece of the sample whole, each vertex at its patch's texel plus its offset from
 /// the seed summed along the way.
 ///
@@ -297,7 +298,14 @@ impl Steps {
     }
 }
 
-/// Seeds at least `spacing` apart covering every vertex (dart throwing on the graph).
+/// How much the seeds' spacing varies around the patch radius: each seed covers a random
+/// radius in (1 ± this) × the patch radius. Seeds all one spacing apart tile the level
+/// with patches of one size, a near-regular lattice the eye picks out (issue: repetition);
+/// varied sizes keep the mean patch size and break the lattice.
+const SPACING_SPREAD: f32 = 0.5;
+
+/// Seeds covering every vertex (dart throwing on the graph), each one a random spacing
+/// within [`SPACING_SPREAD`] of `spacing` from the seeds before it.
 fn spread_seeds(graph: &Steps, spacing: f32, rng: &mut ChaCha8Rng) -> Vec<usize> {
     let n = graph.vertices();
     let mut order: Vec<usize> = (0..n).collect();
@@ -309,7 +317,8 @@ fn spread_seeds(graph: &Steps, spacing: f32, rng: &mut ChaCha8Rng) -> Vec<usize>
             continue;
         }
         seeds.push(v);
-        graph.covered_within(v, spacing, &mut covered, &mut distance, &mut touched);
+        let radius = spacing * rng.random_range(1.0 - SPACING_SPREAD..=1.0 + SPACING_SPREAD);
+        graph.covered_within(v, radius, &mut covered, &mut distance, &mut touched);
         for &t in &touched {
             distance[t] = f32::INFINITY;
         }

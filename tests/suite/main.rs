@@ -24,6 +24,7 @@ mod presets;
 mod quality;
 mod recipes;
 mod render;
+mod repetition;
 mod soler;
 mod surface;
 mod synth;

@@ -61,8 +61,10 @@ fn check_seams(analysis: &Path, dir: &Path, what: &str, preset: &str) {
         tiled_edge <= 1.25 * tiled_whole,
         "{what}: the wrap edge shows ({tiled_edge} against {tiled_whole})"
     );
-    // The measure sees the seam an ordinary plane makes when repeated.
-    assert!(plain_edge > 2.0 * tiled_edge, "{what}: ordinary {plain_edge} vs tileable {tiled_edge}");
+    // The measure sees the seam an ordinary plane makes when repeated: 1.8-2.5× the tileable
+    // result's edge on the gravel (2.6× and more before the default's patches shrank, which
+    // raised every result's own patch energy, the edge's floor).
+    assert!(plain_edge > 1.5 * tiled_edge, "{what}: ordinary {plain_edge} vs tileable {tiled_edge}");
 }
 
 fn seams_of_seed(analysis: &Path, dir: &Path, seed: u64, preset: &str) -> Seams {
