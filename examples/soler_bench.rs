@@ -44,7 +44,7 @@ fn main() {
     let fit = FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), colour, false).expect("fit image");
     let path = Path::new(mesh_path);
     let mesh = btfsynth::mesh::textured::load_textured(path).expect("mesh");
-    let (lo, hi) = btfsynth::mesh::bounds_of(&mesh.positions);
+    let (lo, hi) = mesh.positions.iter().fold((glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
     let scale = across * side as f32 / (hi - lo).max_element();
     let defaults = SolerParams::default();
     let params = SolerParams {
@@ -94,6 +94,37 @@ fn main() {
         let seconds = started.elapsed().as_secs_f64();
         let q = seam_quality(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &sample, false, scale, (3000, 1))
             .expect("measured");
+        // The discontinuity along patch borders: squared difference (fitting space) of the two
+        // sides' texture at points along every shared edge, over a random pair's (2).
+        let (mut total, mut n) = (0f64, 0usize);
+        let (mut a, mut b) = (vec![0f32; 3], vec![0f32; 3]);
+        for f in 0..graph.face_count() {
+            for k in 0..3 {
+                let g = graph.across[f][k];
+                if g == u32::MAX || (g as usize) < f {
+                    continue;
+                }
+                let (ff, fg) = (graph.file_face[f] as usize, graph.file_face[g as usize] as usize);
+                if m.cluster[ff] == m.cluster[fg] {
+                    continue;
+                }
+                let uv_of = |gf: usize, file: usize, v: u32| {
+                    let kk = graph.corner_of(gf as u32, v).unwrap();
+                    m.corner_uv[file][graph.file_corner[gf][kk] as usize]
+                };
+                let (va, vb) = (graph.corners[f][k], graph.corners[f][(k + 1) % 3]);
+                let (pa, pb) = (uv_of(f, ff, va), uv_of(f, ff, vb));
+                let (qa, qb) = (uv_of(g as usize, fg, va), uv_of(g as usize, fg, vb));
+                for i in 0..=8 {
+                    let t = i as f32 / 8.0;
+                    fit.sample(pa.lerp(pb, t), &mut a);
+                    fit.sample(qa.lerp(qb, t), &mut b);
+                    total += a.iter().zip(&b).map(|(x, y)| f64::from((x - y) * (x - y))).sum::<f64>() / 2.0;
+                    n += 1;
+                }
+            }
+        }
+        println!("  border discontinuity {:.3} of a random pair's over {} points", total / n.max(1) as f64, n);
         (m, q, seconds)
     };
     let (m, q, seconds) = run(true);

@@ -45,7 +45,7 @@ pub struct Flattening {
     /// (not a disc, or no simple polygon could be built).
     polygon: Vec<Option<Vec<Vec2>>>,
     /// Per cluster, per control vertex, its coordinates in its parent's control vertices
-    /// (index, weight; unused entries weigh 0). Empty where the parent has no polygon.
+    /// (index, weight; unused entries weigh 0). Empty below a cluster that is not a disc.
     bary: Vec<Vec<[(u16, f32); 3]>>,
 }
 
@@ -58,7 +58,7 @@ impl Flattening {
             .map(|c| {
                 let cluster = &h.clusters[c];
                 let parent = cluster.parent;
-                if parent == NONE || polygon[parent as usize].is_none() {
+                if parent == NONE || !h.clusters[parent as usize].disc || h.clusters[parent as usize].controls.len() < 3 {
                     return Vec::new();
                 }
                 let base = Base::new(graph, h, parent);
@@ -89,6 +89,9 @@ impl Flattening {
                 continue;
             }
             for &child in &cluster.children {
+                if self.bary[child as usize].len() != h.clusters[child as usize].controls.len() {
+                    return None;
+                }
                 let child_positions: Vec<Vec2> = self.bary[child as usize]
                     .iter()
                     .map(|b| b.iter().map(|&(i, w)| w * positions[i as usize]).sum())
@@ -156,6 +159,13 @@ fn control_polygon(graph: &SurfaceGraph, h: &Hierarchy, c: u32) -> Option<Vec<Ve
     }
     let p: Vec<Vec3> = cluster.control_vertices().map(|v| graph.positions[v as usize]).collect();
     let n = p.len();
+    if cluster.is_face() {
+        // A face is its own polygon, exactly (even one without area).
+        let (ab, ac, bc) = (p[0].distance(p[1]), p[0].distance(p[2]), p[1].distance(p[2]));
+        let x = [Vec2::ZERO, Vec2::new(ab, 0.0), super::mapping::unfold(Vec2::ZERO, Vec2::new(ab, 0.0), ac, bc)];
+        let mean = (x[0] + x[1] + x[2]) / 3.0;
+        return Some(x.iter().map(|&v| v - mean).collect());
+    }
     let centre = p.iter().copied().sum::<Vec3>() / n as f32;
     let plane = Plane::new(centre, mean_normal(graph, &cluster.faces));
     let q: Vec<DVec2> = p.iter().map(|&x| plane.project(x)).collect();

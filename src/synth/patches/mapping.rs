@@ -209,27 +209,36 @@ impl Mapper<'_> {
         let (lo, hi) = bounds(footprint().chain(band.iter().flat_map(|(_, p)| p.map(mirror))));
         let origin = (lo - Vec2::ONE).floor();
         let mask = (!band.is_empty()).then(|| self.mask(&band, origin, hi, mapping)).filter(|m| m.count() > 0);
-        let fitted = match &mask {
-            Some(mask) => Some(self.fitter.fit(mask)?),
-            None => None,
+        // A single face first tries to continue one of its textured neighbours exactly: the
+        // finest level fills gaps, and a continuation leaves no seam on that side.
+        let continued = match &mask {
+            Some(mask) if single => self.best_continuation(&band, mask, origin, &local, mapping),
+            _ => None,
         };
-        let (placement, origin, started) = match fitted {
-            Some(Ok(p)) if single || p.error / 2.0 <= self.params.max_fit_error => (p, origin, false),
-            Some(Ok(p)) => return Ok((Outcome::PoorFit, Some(p.error / 2.0))),
+        let fitted = match (&mask, continued) {
+            (_, Some(found)) => Some(Ok(found)),
+            (Some(mask), None) => Some(self.fitter.fit(mask)?.map(|p| (self.fitter.to_sample(&p), p.error))),
+            (None, None) => None,
+        };
+        let (mask_to_sample, origin, error) = match fitted {
+            Some(Ok((map, error))) if single || error / 2.0 <= self.params.max_fit_error => (map, origin, Some(error / 2.0)),
+            Some(Ok((_, error))) => return Ok((Outcome::PoorFit, Some(error / 2.0))),
             Some(Err(Unplaced::TooLarge)) if !single => return Ok((Outcome::TooLarge, None)),
             // No textured neighbour (or a single face too large to match): a random placement.
             _ => {
                 let (lo, hi) = bounds(footprint());
-                match self.random_placement(lo, hi, rng) {
-                    Some(p) => (p, lo, true),
-                    None if single => (self.forced_placement(lo, hi), lo, true),
+                let placement = match self.random_placement(lo, hi, rng) {
+                    Some(p) => p,
+                    None if single => self.forced_placement(lo, hi),
                     None => return Ok((Outcome::TooLarge, None)),
-                }
+                };
+                (self.fitter.to_sample(&placement), lo, None)
             }
         };
+        let started = error.is_none();
         // Chart texels → mask pixels → sample.
         let to_mask = Affine2::from_translation(-origin) * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)));
-        let mut to_sample = self.fitter.to_sample(&placement) * to_mask;
+        let mut to_sample = mask_to_sample * to_mask;
         let image = &self.fitter.image;
         if image.tileable {
             // Keep coordinates near the sample: whole periods change nothing.
@@ -246,8 +255,67 @@ impl Mapper<'_> {
             mapping.mapped_by[f as usize] = c;
             mapping.face_uv[f as usize] = corners.map(|i| uv[i as usize]);
         }
-        let error = (!started).then_some(placement.error / 2.0);
         Ok((Outcome::Mapped { started }, error))
+    }
+
+    /// The best exact continuation of a textured neighbour for a single face: per
+    /// neighbouring patch in the band, the rotation and translation that carry the band's
+    /// mask positions onto that patch's own sample coordinates (least squares), scored on
+    /// the whole mask; only placements that keep the face inside a sample that does not tile.
+    /// Returns the mask → sample map and its error (as [`Fitter::fit`] measures it).
+    fn best_continuation(
+        &self,
+        band: &[(u32, [Vec2; 3])],
+        mask: &Mask,
+        origin: Vec2,
+        local: &[Vec2],
+        mapping: &Mapping,
+    ) -> Option<(Affine2, f32)> {
+        let image = &self.fitter.image;
+        let mut owners: Vec<u32> = band.iter().map(|(g, _)| mapping.mapped_by[*g as usize]).collect();
+        owners.sort_unstable();
+        owners.dedup();
+        let (w, h) = (mask.width, mask.height);
+        let count = mask.count().max(1) as f32;
+        let mut value = vec![0f32; image.channels];
+        let mut best: Option<(Affine2, f32)> = None;
+        for owner in owners {
+            let pairs: Vec<(Vec2, Vec2)> = band
+                .iter()
+                .filter(|(g, _)| mapping.mapped_by[*g as usize] == owner)
+                .flat_map(|(g, p)| (0..3).map(move |k| (mirror(p[k]) - origin, mapping.face_uv[*g as usize][k])))
+                .collect();
+            let n = pairs.len() as f32;
+            let (cm, cs) = pairs.iter().fold((Vec2::ZERO, Vec2::ZERO), |(a, b), (m, s)| (a + *m / n, b + *s / n));
+            let (dot, cross) = pairs.iter().fold((0f32, 0f32), |(d, c), (m, s)| {
+                let (m, s) = (*m - cm, *s - cs);
+                (d + m.dot(s), c + m.perp_dot(s))
+            });
+            let rotation = Mat2::from_angle(cross.atan2(dot));
+            let map = Affine2::from_mat2_translation(rotation, cs - rotation * cm);
+            let inside = local.iter().all(|&p| image.inside(map.transform_point2(mirror(p) - origin)));
+            if !inside {
+                continue;
+            }
+            let mut error = 0f32;
+            for y in 0..h {
+                for x in 0..w {
+                    if mask.support[y * w + x] == 0.0 {
+                        continue;
+                    }
+                    image.sample(map.transform_point2(Vec2::new(x as f32, y as f32)), &mut value);
+                    for (c, v) in value.iter().enumerate() {
+                        let d = mask.values[c * w * h + y * w + x] - v;
+                        error += d * d;
+                    }
+                }
+            }
+            let error = error / count;
+            if best.is_none_or(|(_, e)| error < e) {
+                best = Some((map, error));
+            }
+        }
+        best
     }
 
     /// Whether a footprint (chart vertices in texels) could lie inside the sample at some

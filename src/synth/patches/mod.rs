@@ -129,8 +129,8 @@ pub struct LevelReport {
     pub started: usize,
     /// Faces mapped on this level.
     pub faces: usize,
-    /// Given up: not a disc / too distorted flattened / larger than the sample allows /
-    /// fitting error over the threshold.
+    /// Given up: not a disc or without a simple control polygon / too distorted flattened /
+    /// larger than the sample allows / fitting error over the threshold.
     pub not_disc: usize,
     pub distorted: usize,
     pub too_large: usize,

@@ -218,7 +218,27 @@ pub fn uv_map_comments(path: &Path) -> Option<Vec<String>> {
 pub fn read_uv_map(path: &Path) -> Result<UvMap> {
     let bad = |m: &str| Error::format(path, format!("not a btfsynth uvmap: {m}"));
     let comments = uv_map_comments(path).ok_or_else(|| bad("no 'btfsynth uvmap' comment at its start"))?;
-    let mesh = load_textured(path)?;
+    let mut mesh = load_textured(path)?;
+    let uvs = mesh.uvs.as_ref().ok_or_else(|| bad("its faces have no texture coordinates"))?;
+    // Corners of one vertex with the same coordinate share it (a PLY writes one per corner),
+    // so that a patch is one piece and only seams split vertices.
+    let mut shared: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
+    let mut coords = Vec::new();
+    let corners: Vec<[u32; 3]> = mesh
+        .triangles
+        .iter()
+        .zip(&uvs.corners)
+        .map(|(t, c)| {
+            std::array::from_fn(|k| {
+                let uv = uvs.coords[c[k] as usize];
+                *shared.entry((t[k], uv.to_array().map(f32::to_bits))).or_insert_with(|| {
+                    coords.push(uv);
+                    (coords.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    mesh.uvs = Some(crate::mesh::textured::UvLayer { coords, corners });
     let uvs = mesh.uvs.as_ref().ok_or_else(|| bad("its faces have no texture coordinates"))?;
     let value = |key: &str| comment_value(&comments, key);
     let sample = value("sample")
