@@ -49,7 +49,7 @@ pub fn shared_data_in(root: &Path, test: &str, relative: &str, required: bool) -
     if path.exists() {
         return Ok(path);
     }
-    let why = format!("{} is absent (real data that may not ship; see README, Tests)", path.display());
+    let why = format!("{} is absent (real data that may not ship; see docs/testing.md)", path.display());
     if required {
         panic!("{test}: {why}, and {REQUIRE_SHARED}=1 requires it");
     }

@@ -142,17 +142,17 @@ pub fn write_with_maps(
     staged.commit()
 }
 
+/// The manifest `analysis` of `btf` would be written with (the `source_path` it was read
+/// from, `crop`), so that a sample can be used straight from memory as from its directory.
+pub fn manifest_of(analysis: &Analysis, btf: &Btf, source_path: &Path, crop: Option<[u32; 4]>) -> Manifest {
+    let levels = analysis.levels.iter().enumerate().map(|(l, level)| level_info(l, level)).collect();
+    manifest(analysis, btf, source_path, crop, levels)
+}
+
 fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> Result<LevelInfo> {
-    let t = &level.textons;
+    let info = level_info(l, level);
+    let (t, files) = (&level.textons, &info.files);
     let (w, h) = (t.map.width, t.map.height);
-    let files = LevelFiles {
-        textons: format!("level{l}_textons.npy"),
-        gamma: format!("level{l}_gamma.npy"),
-        embedding: format!("level{l}_embedding.npy"),
-        knn: format!("level{l}_knn.npy"),
-        knn_two_level: level.knn_two_level.as_ref().map(|_| format!("level{l}_knn2.npy")),
-        appearance: Some(format!("level{l}_appearance.npy")),
-    };
     let k = level.knn.len() / (w * h).max(1);
     npy::write(&out.join(&files.textons), &[h, w], &t.map.labels)?;
     npy::write(
@@ -173,16 +173,29 @@ fn write_level(out: &Path, l: usize, level: &super::pipeline::AnalysisLevel) -> 
         let a = &t.appearance;
         npy::write(&out.join(name), &[h, w, a.ncols()], &a.iter().copied().collect::<Vec<_>>())?;
     }
-    Ok(LevelInfo {
-        width: w,
-        height: h,
+    Ok(info)
+}
+
+fn level_info(l: usize, level: &super::pipeline::AnalysisLevel) -> LevelInfo {
+    let t = &level.textons;
+    let files = LevelFiles {
+        textons: format!("level{l}_textons.npy"),
+        gamma: format!("level{l}_gamma.npy"),
+        embedding: format!("level{l}_embedding.npy"),
+        knn: format!("level{l}_knn.npy"),
+        knn_two_level: level.knn_two_level.as_ref().map(|_| format!("level{l}_knn2.npy")),
+        appearance: Some(format!("level{l}_appearance.npy")),
+    };
+    LevelInfo {
+        width: t.map.width,
+        height: t.map.height,
         textons: t.textons,
         embedding_dims: t.embedding.ncols(),
         basis_rank: t.basis_rank,
         basis_energy: t.basis_energy,
         kmeans_iterations: t.kmeans_iterations,
         files,
-    })
+    }
 }
 
 fn manifest(

@@ -80,7 +80,7 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
     Ok(())
 }
 
-/// The stack's description as JSON; the keys are documented in the README.
+/// The stack's description as JSON; the keys are documented in docs/commands.md (`info`).
 pub fn stack_json(path: &Path, stack: &Btf) -> serde_json::Value {
     let (views, lights) = (stack.views(), stack.lights());
     let mean = mean_rgb(stack);
@@ -173,7 +173,7 @@ fn mean_rgb(stack: &Btf) -> [f64; 3] {
     sum.map(|s| (s / n * 1e4).round() / 1e4)
 }
 
-/// The analysis' description as JSON; the keys are documented in the README.
+/// The analysis' description as JSON; the keys are documented in docs/commands.md (`info`).
 pub fn analysis_json(m: &Manifest) -> serde_json::Value {
     let levels: Vec<serde_json::Value> = m
         .levels

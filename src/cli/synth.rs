@@ -93,7 +93,7 @@ pub struct SynthArgs {
     /// Run the recipe in this JSON file instead of a preset: the form `synth` records as
     /// `params.recipe` in plane.json, the PLY header and --report (copy that object out and
     /// edit it). Its passes may match with the Colour metric (SSD of the sample's linear
-    /// RGB), which only a recipe reaches. README, Recipes, lists every value.
+    /// RGB), which only a recipe reaches. docs/synthesis.md, Recipes, lists every value.
     #[arg(long, value_name = "FILE.json", conflicts_with = "preset")]
     recipe: Option<PathBuf>,
     /// Print one line per preset (its name and paper) and exit.

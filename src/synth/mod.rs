@@ -13,12 +13,14 @@ pub mod candidates;
 pub mod constrained;
 pub mod engine;
 pub(crate) mod metric;
+pub mod pass;
 pub mod patches;
 pub mod plane;
 pub mod recipe;
 pub mod round;
 pub mod round_pass;
 pub mod sample;
+pub(crate) mod square_pass;
 pub mod start;
 pub mod surface;
 pub mod surface_map;
@@ -34,13 +36,14 @@ pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
 use crate::{Error, Result};
-use engine::{pass, visit_order, Parent, PassPlan, PassStats};
+use engine::{visit_order, PassPlan, PassStats};
 use metric::{AppearanceMetric, GammaMetric, Metric};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use recipe::pass_search;
 use round::{RoundSample, RoundStencil};
 use round_pass::RoundTarget;
+use square_pass::{Parent, SquareMatch};
 use std::time::{Duration, Instant};
 use target::TargetLevel;
 
@@ -250,7 +253,8 @@ fn run_pass_with<'a, M: Metric>(
         select: p.select,
         coherence_bias: p.coherence_bias,
     };
-    pass(target, state, level_sample, &own, parent.as_ref(), &plan, order, rng)
+    let mut matcher = SquareMatch::new(target, level_sample, &own, parent.as_ref(), p.mask);
+    pass::run_pass(target, state, level_sample, &mut matcher, &plan, order, rng)
 }
 
 /// Random patches on `target`, their seams matched with the metric `kind`.

@@ -161,7 +161,7 @@ impl Preset {
     /// The default: Tong's engine matched on appearance vectors, from random patches, with
     /// a preference for continuing copies and choosy selection. Every departure from the paper
     /// is measured on eleven 128² photographs → 512² against Embark's texture-synthesis
-    /// (README, Synthesis quality).
+    /// (docs/quality.md).
     pub fn appearance() -> Self {
         Self::tong_schedule(
             "appearance",
@@ -191,8 +191,8 @@ impl Preset {
     /// on stone33 (128² → 512²) against Resynthesizer's 0.030; at 0.15 (with varied seed
     /// spacing) 0.020–0.027 over seeds 0–3, at the cost of 30% more patch energy (0.0020 →
     /// 0.0026, Embark 0.0029). A sample that holds a single element (one tile) loses whole
-    /// elements at this size; a recipe with a larger radius keeps them (README, Synthesis
-    /// quality).
+    /// elements at this size; a recipe with a larger radius keeps them
+    /// (docs/quality.md).
     fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
         let pass = |parent| Pass {
             order: VisitOrder::Random,
@@ -217,7 +217,7 @@ impl Preset {
 
     /// Turk 2001 §5.2: the coarsest level from random texels, one half-square H(n, 0)
     /// pass in sweep order for the initial pattern; every finer level extrapolated with
-    /// F(n, 1) and refined with F(n, 0) + F(3, 1), all in sweep order. Departures (README):
+    /// F(n, 1) and refined with F(n, 0) + F(3, 1), all in sweep order. Departures (docs/synthesis.md):
     /// appearance vectors for colours, the `--search` given (k-coherence by default; `--search
     /// full` is the paper's), and choosy selection with a coherence bias.
     pub fn turk2001() -> Self {
@@ -296,7 +296,7 @@ impl Preset {
 
     /// Refuses a search the recipe cannot run well: adaptive passes take their candidates
     /// around the linked texels (k-coherence), as Chen and Dong do; a full search there
-    /// smeared 1.2% of stone33's adjacent pairs onto one texel at 60× the time (README;
+    /// smeared 1.2% of stone33's adjacent pairs onto one texel at 60× the time (docs/synthesis.md;
     /// measured before the adaptive passes had the coherence bias).
     pub fn check_search(&self, search: Search) -> Result<()> {
         let adaptive_full = self

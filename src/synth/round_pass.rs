@@ -6,12 +6,13 @@
 //! The `chen2008` preset runs it ([`super::Preset::chen2008`]).
 
 use super::adaptive::{choose_weighted, RoundQuery, Scratch};
-use super::candidates::{full_candidates, Coherence, Search};
-use super::engine::{selection_factor, PassStats, Select, State, Usage};
+use super::candidates::Search;
+use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
+use super::pass::{run_pass, Choice, VertexMatch};
 use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
-use super::sample::SampleLevel;
+use super::sample::{AppearanceMap, SampleLevel};
 use super::surface::slot;
 use super::target::{Slot, TargetLevel, OUTSIDE};
 use crate::{Error, Result};
@@ -81,11 +82,97 @@ fn snap(p: f32) -> f32 {
     }
 }
 
+/// A vertex's round neighbourhood under the adaptive metric, as the [`VertexMatch`] part of
+/// the pass loop.
+pub struct RoundMatch<'a> {
+    round: &'a RoundTarget<'a>,
+    sample: &'a SampleLevel,
+    map: &'a AppearanceMap,
+    round_sample: &'a RoundSample,
+    query: RoundQuery,
+    slots: Vec<Slot>,
+    scratch: Scratch,
+}
+
+impl<'a> RoundMatch<'a> {
+    /// The round neighbourhoods of `round` against `round_sample` (resampled from `sample`'s
+    /// appearance vectors), for a pass under `mask`: [`Mask::Visited`] (a level synthesized
+    /// from nothing: only vertices visited so far are compared) or [`Mask::Full`] (refining).
+    pub fn new(
+        round: &'a RoundTarget<'a>,
+        sample: &'a SampleLevel,
+        round_sample: &'a RoundSample,
+        mask: Mask,
+    ) -> Result<Self> {
+        if !matches!(mask, Mask::Visited | Mask::Full) {
+            return Err(Error::invalid("an adaptive pass compares visited vertices or all of them"));
+        }
+        let map = sample
+            .appearance
+            .as_ref()
+            .ok_or_else(|| Error::invalid("the adaptive metric needs appearance vectors"))?;
+        let (query, slots, scratch) = Default::default();
+        Ok(RoundMatch { round, sample, map, round_sample, query, slots, scratch })
+    }
+}
+
+impl VertexMatch for RoundMatch<'_> {
+    fn reach(&self) -> usize {
+        // The round neighbourhood reads one texel beyond its outer circle (bilinear).
+        self.round_sample.stencil.circles + 1
+    }
+
+    fn two_level(&self) -> bool {
+        false
+    }
+
+    fn prepare(&mut self, v: usize, state: &State, known: Option<&[bool]>) {
+        let (query, dims) = (&mut self.query, self.map.dims);
+        self.round.slots(v, self.round_sample.stencil, &mut self.slots);
+        query.values.clear();
+        query.values.resize(self.slots.len() * dims, 0.0);
+        query.known.clear();
+        query.known.resize(self.slots.len(), false);
+        for (p, parts, count) in known_parts(&self.slots, known) {
+            query.known[p] = true;
+            for &(u, weight) in &parts[..count] {
+                if u == OUTSIDE {
+                    continue;
+                }
+                let [x, y] = state.uv[u as usize];
+                let values = &mut query.values[p * dims..(p + 1) * dims];
+                values.iter_mut().zip(self.map.at(x as i64, y as i64)).for_each(|(q, &a)| *q += weight * a);
+            }
+        }
+    }
+
+    fn choose(
+        &mut self,
+        candidates: &[u32],
+        _current: [i32; 2],
+        factor: impl Fn(u32) -> f32,
+        draw: impl FnOnce() -> [i32; 2],
+    ) -> Choice {
+        // Nothing known around the vertex: every candidate ties at zero, and a full search
+        // would give every such vertex the same first texel (streaks); start it at random.
+        let candidates = if self.query.known.contains(&true) { candidates } else { &[] };
+        let width = self.sample.width;
+        match choose_weighted(&self.query, self.round_sample, candidates, factor, &mut self.scratch) {
+            // The top size stands where the square passes report their best distance.
+            Some(choice) => Choice {
+                texel: Some([(choice.texel as usize % width) as i32, (choice.texel as usize / width) as i32]),
+                figure: choice.top_size as f64,
+                compared: candidates.len(),
+            },
+            None => Choice { texel: Some(draw()), figure: 0.0, compared: candidates.len() },
+        }
+    }
+}
+
 /// One adaptive pass over `level` in `order`, from k-coherence candidates (lists of `k`)
 /// or, with [`Search::Full`], every candidate texel, picked as `select` says with `bias`
-/// on candidates that start a new copy (as the square passes weigh them). With
-/// [`Mask::Visited`] (a level synthesized from nothing) only vertices visited so far in the
-/// pass are compared; with [`Mask::Full`] (refining a level) every vertex is.
+/// on candidates that start a new copy (as the square passes weigh them): the pass loop
+/// with a [`RoundMatch`].
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
     level: &TargetLevel,
@@ -93,83 +180,13 @@ pub fn adaptive_pass(
     state: &mut State,
     sample: &SampleLevel,
     round_sample: &RoundSample,
-    (search, mask, select, bias): (Search, Mask, Select, f32),
+    (search, mask, select, coherence_bias): (Search, Mask, Select, f32),
     order: &[u32],
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
-    if !matches!(mask, Mask::Visited | Mask::Full) {
-        return Err(Error::invalid("an adaptive pass compares visited vertices or all of them"));
-    }
-    let map = sample
-        .appearance
-        .as_ref()
-        .ok_or_else(|| Error::invalid("the adaptive metric needs appearance vectors"))?;
-    let stencil = round_sample.stencil;
-    // The round neighbourhood reads one texel beyond its outer circle (bilinear).
-    let radius = stencil.circles + 1;
-    let full = matches!(search, Search::Full).then(|| full_candidates(sample, radius));
-    let k = if let Search::KCoherence { k } = search { k } else { 1 };
-    let mut known = (mask == Mask::Visited).then(|| vec![false; level.vertices]);
-    let mut coherence = Coherence::new(sample);
-    let mut usage = Usage::new(sample, state, radius, select);
-    let (mut slots, mut shifts, mut scratch) = (Vec::new(), Vec::new(), Scratch::default());
-    let mut query = RoundQuery::default();
-    let (mut candidate_sum, mut top_sum) = (0usize, 0usize);
-    for &v in order {
-        let v = v as usize;
-        round.slots(v, stencil, &mut slots);
-        query.values.clear();
-        query.values.resize(slots.len() * map.dims, 0.0);
-        query.known.clear();
-        query.known.resize(slots.len(), false);
-        for (p, parts, count) in known_parts(&slots, known.as_deref()) {
-            query.known[p] = true;
-            for &(u, weight) in &parts[..count] {
-                if u == OUTSIDE {
-                    continue;
-                }
-                let [x, y] = state.uv[u as usize];
-                let values = &mut query.values[p * map.dims..(p + 1) * map.dims];
-                values.iter_mut().zip(map.at(x as i64, y as i64)).for_each(|(q, &a)| *q += weight * a);
-            }
-        }
-        // Gathered even under a full search: the forward shifts mark which candidates
-        // continue a neighbour's copy, for the coherence bias.
-        coherence.gather(
-            level.shifts_of(v, &mut shifts),
-            known.as_deref(),
-            state,
-            sample,
-            (k, radius, false),
-        );
-        let candidates: &[u32] = match &full {
-            Some(all) => all,
-            None => &coherence.out,
-        };
-        let current = state.uv[v];
-        let factor = |q: u32| selection_factor(&usage, &coherence, q, current, bias);
-        // Nothing known around the vertex: every candidate ties at zero, and a full search
-        // would give every such vertex the same first texel (streaks); start it at random.
-        let candidates = if query.known.contains(&true) { candidates } else { &[] };
-        let chosen = match choose_weighted(&query, round_sample, candidates, factor, &mut scratch) {
-            Some(choice) => {
-                top_sum += choice.top_size;
-                let q = choice.texel as usize;
-                [(q % sample.width) as i32, (q / sample.width) as i32]
-            }
-            None => super::start::random_texel(sample, radius, rng),
-        };
-        candidate_sum += candidates.len();
-        usage.moved(current, chosen);
-        state.uv[v] = chosen;
-        state.labels[v] = sample.label_at(chosen[0] as i64, chosen[1] as i64);
-        if let Some(known) = known.as_mut() {
-            known[v] = true;
-        }
-    }
-    let n = order.len().max(1) as f64;
-    // The mean top size stands where the square passes report their mean best distance.
-    Ok(PassStats { mean_best: top_sum as f64 / n, mean_candidates: candidate_sum as f64 / n })
+    let mut matcher = RoundMatch::new(round, sample, round_sample, mask)?;
+    let plan = PassPlan { search, select, coherence_bias, mask };
+    Ok(run_pass(level, state, sample, &mut matcher, &plan, order, rng))
 }
 
 #[cfg(test)]

@@ -1,8 +1,10 @@
 //! The sample side of synthesis: per pyramid level, the texton map, Γ and the kNN lists,
-//! read from an analysis directory.
+//! taken from an analysis in memory or read from its directory.
 
 use crate::analysis::npy;
-use crate::analysis::store::{read_manifest, Manifest, MANIFEST};
+use crate::analysis::pipeline::{Analysis, AnalysisLevel};
+use crate::analysis::store::{manifest_of, read_manifest, Manifest, MANIFEST};
+use crate::btf::Btf;
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -107,16 +109,41 @@ pub struct Sample {
 }
 
 impl Sample {
+    /// The first `levels` levels of `analysis` of `btf`, straight from memory: what
+    /// [`Sample::open`] reads back after [`crate::analysis::store::write`], without the disk.
+    pub fn from_analysis(analysis: &Analysis, btf: &Btf, levels: usize) -> Result<Self> {
+        let manifest = manifest_of(analysis, btf, Path::new("(in memory)"), None);
+        check_level_count(levels, &manifest, "the analysis in memory")?;
+        let tileable = manifest.params.tileable;
+        let level = |level: &AnalysisLevel| -> Result<SampleLevel> {
+            let t = &level.textons;
+            let (width, height) = (t.map.width, t.map.height);
+            let appearance = t.appearance.as_slice().filter(|_| t.appearance.ncols() > 0);
+            let level = SampleLevel {
+                width,
+                height,
+                labels: t.map.labels.clone(),
+                gamma: t.gamma.iter().copied().collect(),
+                textons: t.textons + 1,
+                k: level.knn.len() / (width * height).max(1),
+                knn: level.knn.clone(),
+                knn_two_level: level.knn_two_level.clone(),
+                tileable,
+                appearance: appearance
+                    .map(|a| AppearanceMap::new(width, height, t.appearance.ncols(), a, tileable)),
+                colour: None,
+            };
+            level.check().map_err(Error::invalid)?;
+            Ok(level)
+        };
+        let levels = analysis.levels[..levels].iter().map(level).collect::<Result<_>>()?;
+        Ok(Sample { levels, manifest })
+    }
+
     /// Reads the first `levels` levels of the analysis in `dir`.
     pub fn open(dir: &Path, levels: usize) -> Result<Self> {
         let manifest = read_manifest(dir)?;
-        if levels == 0 || levels > manifest.levels.len() {
-            return Err(Error::invalid(format!(
-                "--levels {levels}: the analysis {} has {} level(s)",
-                dir.display(),
-                manifest.levels.len()
-            )));
-        }
+        check_level_count(levels, &manifest, &dir.display().to_string())?;
         let read_level = |info: &crate::analysis::store::LevelInfo| -> Result<SampleLevel> {
             let labels: npy::NpyArray<u16> = npy::read(&dir.join(&info.files.textons))?;
             let gamma: npy::NpyArray<f32> = npy::read(&dir.join(&info.files.gamma))?;
@@ -191,6 +218,16 @@ impl Sample {
         }
         Ok(())
     }
+}
+
+fn check_level_count(levels: usize, manifest: &Manifest, name: &str) -> Result<()> {
+    if levels == 0 || levels > manifest.levels.len() {
+        return Err(Error::invalid(format!(
+            "--levels {levels}: the analysis {name} has {} level(s)",
+            manifest.levels.len()
+        )));
+    }
+    Ok(())
 }
 
 impl SampleLevel {

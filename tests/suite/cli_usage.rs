@@ -1,6 +1,6 @@
 //! What a new user meets first: usage errors that say what is missing and exit 2, help
 //! that shows what each command needs, outputs that cannot be written refused before any
-//! work, no Rust `Debug` text, and a README that lists every command.
+//! work, no Rust `Debug` text, and a README that lists every command (docs/ explain each).
 
 use crate::common;
 
@@ -125,8 +125,17 @@ fn the_readme_documents_every_command() {
         .filter(|c| *c != "help")
         .collect();
     assert!(commands.len() >= 9, "{overview}");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let reference: String = ["docs/commands.md", "docs/synthesis.md"]
+        .iter()
+        .map(|f| std::fs::read_to_string(format!("{root}/{f}")).unwrap())
+        .collect();
     for command in commands {
-        assert!(readme.contains(&format!("### `btfsynth {command}")), "README has no section for {command}");
+        assert!(
+            readme.contains(&format!("| `btfsynth {command}")),
+            "README's table has no row for {command}"
+        );
+        assert!(reference.contains(&format!("# `btfsynth {command}")), "docs/ have no section for {command}");
     }
     assert!(readme.contains("cargo test --release"), "the README's test command shares the demo's build");
 }
