@@ -35,22 +35,33 @@ fn main() {
     let image = image::open(photo).expect("photo").to_rgb32f();
     let side = crop.min(image.width() as usize).min(image.height() as usize);
     let at = |x: usize, y: usize| image.get_pixel(x as u32, y as u32).0;
-    let sample = Picture { width: side, height: side, rgb: (0..side * side).map(|i| at(i % side, i / side)).collect() };
+    let sample = Picture {
+        width: side,
+        height: side,
+        rgb: (0..side * side).map(|i| at(i % side, i / side)).collect(),
+    };
     let colour = match flag("--colour").as_deref() {
         Some("hsv") => ColourSpace::Hsv,
         Some("rgb") => ColourSpace::Rgb,
         _ => ColourSpace::Lab,
     };
-    let fit = FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), colour, false).expect("fit image");
+    let fit = FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), colour, false)
+        .expect("fit image");
     let path = Path::new(mesh_path);
     let mesh = btfsynth::mesh::textured::load_textured(path).expect("mesh");
-    let (lo, hi) = mesh.positions.iter().fold((glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let (lo, hi) =
+        mesh.positions.iter().fold(
+            (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
     let scale = across * side as f32 / (hi - lo).max_element();
     let defaults = SolerParams::default();
     let params = SolerParams {
         texels_per_unit: scale,
-        max_fit_error: flag("--threshold").map_or(defaults.max_fit_error, |v| v.parse().expect("--threshold")),
-        max_flat_error: flag("--distortion").map_or(defaults.max_flat_error, |v| v.parse().expect("--distortion")),
+        max_fit_error: flag("--threshold")
+            .map_or(defaults.max_fit_error, |v| v.parse().expect("--threshold")),
+        max_flat_error: flag("--distortion")
+            .map_or(defaults.max_flat_error, |v| v.parse().expect("--distortion")),
         band: flag("--band").map_or(defaults.band, |v| v.parse().expect("--band")),
         relax: !has("--no-relax"),
         seed: flag("--seed").map_or(0, |v| v.parse().expect("--seed")),
@@ -77,7 +88,8 @@ fn main() {
         }
         errors.sort_by(f32::total_cmp);
         let q = |f: f32| errors.get(((errors.len() as f32 - 1.0) * f) as usize).copied().unwrap_or(f32::NAN);
-        let faces = level.iter().map(|&c| h.clusters[c as usize].faces.len()).sum::<usize>() as f32 / level.len() as f32;
+        let faces = level.iter().map(|&c| h.clusters[c as usize].faces.len()).sum::<usize>() as f32
+            / level.len() as f32;
         println!(
             "  level {l}: {} clusters ({faces:.1} faces each); flattening error median {:.3}, 90% {:.3}; {folds} fold, {none} without a chart",
             level.len(),
@@ -89,11 +101,27 @@ fn main() {
     let run = |matching: bool| {
         let params = SolerParams { matching, ..params.clone() };
         let started = Instant::now();
-        let m = map_mesh(&mesh.positions, &mesh.triangles, path, fit.clone(), &params, &btfsynth::progress::Silent)
-            .expect("mapped");
+        let m = map_mesh(
+            &mesh.positions,
+            &mesh.triangles,
+            path,
+            fit.clone(),
+            &params,
+            &btfsynth::progress::Silent,
+        )
+        .expect("mapped");
         let seconds = started.elapsed().as_secs_f64();
-        let q = seam_quality(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &sample, false, scale, (3000, 1))
-            .expect("measured");
+        let q = seam_quality(
+            &mesh.positions,
+            &mesh.triangles,
+            &m.corner_uv,
+            &m.cluster,
+            &sample,
+            false,
+            scale,
+            (3000, 1),
+        )
+        .expect("measured");
         // The discontinuity along patch borders: squared difference (fitting space) of the two
         // sides' texture at points along every shared edge, over a random pair's (2).
         let (mut total, mut n) = (0f64, 0usize);
@@ -124,15 +152,22 @@ fn main() {
                 }
             }
         }
-        println!("  border discontinuity {:.3} of a random pair's over {} points", total / n.max(1) as f64, n);
+        println!(
+            "  border discontinuity {:.3} of a random pair's over {} points",
+            total / n.max(1) as f64,
+            n
+        );
         (m, q, seconds)
     };
     let (m, q, seconds) = run(true);
-    println!("matched: {seconds:.2} s wall (hierarchy, flattening, transforms, mapping: {:.2?})", m.report.seconds);
+    println!(
+        "matched: {seconds:.2} s wall (hierarchy, flattening, transforms, mapping: {:.2?})",
+        m.report.seconds
+    );
     for l in m.report.levels.iter().filter(|l| l.tried > 0) {
         println!(
-            "  level {}: {} to cover, {} mapped ({} at random, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit; fit error median {:.3}; {:.2} s",
-            l.level, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.median_fit_error, l.seconds
+            "  level {}: {} to cover, {} mapped ({} at random, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
+            l.level, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
         );
     }
     println!(

@@ -108,7 +108,10 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
             let (lo, hi) = crate::mesh::bounds_of(&mesh.positions);
             let side = (hi - lo).max_element();
             if !(side > 0.0) {
-                return Err(usage(format!("{}: the mesh has no extent to scale a texture to", common.mesh.display())));
+                return Err(usage(format!(
+                    "{}: the mesh has no extent to scale a texture to",
+                    common.mesh.display()
+                )));
             }
             across.unwrap_or(4.0 * w as f32) / side
         }
@@ -156,8 +159,19 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     for l in report.levels.iter().filter(|l| l.tried > 0) {
         eprintln!(
             "  level {}: {} clusters, {} to cover, {} mapped ({} started at random, {} faces); \
-             split: {} not discs, {} distorted, {} too large, {} poor fits; {:.2} s",
-            l.level, l.clusters, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.seconds
+             split: {} not discs, {} distorted, {} too large, {} poor fits, {} unreached; {:.2} s",
+            l.level,
+            l.clusters,
+            l.tried,
+            l.mapped,
+            l.started,
+            l.faces,
+            l.not_disc,
+            l.distorted,
+            l.too_large,
+            l.poor_fit,
+            l.unreached,
+            l.seconds
         );
     }
     eprintln!(

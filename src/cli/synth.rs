@@ -230,7 +230,11 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
 /// `--method soler2002`: the mesh is mapped as it is, so the per-vertex engine's flags do not apply.
 fn soler2002(args: &SynthArgs, analysis: &Path, output: &Path, bars: &Bars) -> Result<()> {
     let Some(mesh) = &args.mesh else { return Err(usage("--method soler2002 maps a MESH (not --plane)")) };
-    if args.vertices.is_some() || args.recipe.is_some() || args.preset != "appearance" || args.marching_cache.is_some() {
+    if args.vertices.is_some()
+        || args.recipe.is_some()
+        || args.preset != "appearance"
+        || args.marching_cache.is_some()
+    {
         return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --marching-cache"));
     }
     let common = super::soler::Common {

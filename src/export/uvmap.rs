@@ -41,7 +41,10 @@ pub(super) fn export_uv_map(
         )));
     }
     if options.size.is_some() {
-        tracing::warn!("{}: a texture-mapped result uses the sample itself; --size is ignored", surface.display());
+        tracing::warn!(
+            "{}: a texture-mapped result uses the sample itself; --size is ignored",
+            surface.display()
+        );
     }
     let light = options.light.filter(|_| material.len() > 1);
     let look = Look { scene: &scene, material: &material, blend: bake_blend(&material, light), light };
@@ -52,7 +55,8 @@ pub(super) fn export_uv_map(
     let mut seconds = [started.elapsed().as_secs_f64(), 0.0, 0.0, 0.0];
     let started = Instant::now();
     let mesh = &map.mesh;
-    let uvs = mesh.uvs.as_ref().ok_or_else(|| Error::format(surface, "the result has no texture coordinates"))?;
+    let uvs =
+        mesh.uvs.as_ref().ok_or_else(|| Error::format(surface, "the result has no texture coordinates"))?;
     let atlas = AtlasMesh::from_file_uvs(mesh, uvs);
     let normals = vertex_normals(mesh, &atlas);
     let needs_tangents = maps.iter().any(|m| m.kind == MapKind::Normal);
@@ -73,10 +77,19 @@ pub(super) fn export_uv_map(
     seconds[2] = started.elapsed().as_secs_f64();
     let started = Instant::now();
     let name = super::stem(output);
-    let job = TexturedJob { name: &name, mesh, mesh_path: surface, look: &look, maps: &maps, options, direct: true };
+    let job = TexturedJob {
+        name: &name,
+        mesh,
+        mesh_path: surface,
+        look: &look,
+        maps: &maps,
+        options,
+        direct: true,
+    };
     let mut document = super::gltf::Document::new(&name);
     document.repeat(map.tileable);
-    let positions: Vec<[f32; 3]> = atlas.source_vertex.iter().map(|&v| mesh.positions[v as usize].to_array()).collect();
+    let positions: Vec<[f32; 3]> =
+        atlas.source_vertex.iter().map(|&v| mesh.positions[v as usize].to_array()).collect();
     let mut attributes = Map::new();
     attributes.insert("POSITION".into(), document.attribute(&positions).into());
     attributes.insert("NORMAL".into(), document.attribute(&to_arrays(&normals)).into());
@@ -98,6 +111,12 @@ pub(super) fn export_uv_map(
     let files = write_document(document, output, binary, options.overwrite)?;
     seconds[3] = started.elapsed().as_secs_f64();
     let charts = atlas.chart.iter().collect::<std::collections::HashSet<_>>().len();
-    let atlas = AtlasReport { size: w.max(h) as u32, generated: false, charts, baked_texels: 0, maps: maps.iter().map(|m| m.kind).collect() };
+    let atlas = AtlasReport {
+        size: w.max(h) as u32,
+        generated: false,
+        charts,
+        baked_texels: 0,
+        maps: maps.iter().map(|m| m.kind).collect(),
+    };
     Ok(ExportReport { files, vertices, triangles, atlas: Some(atlas), seconds })
 }

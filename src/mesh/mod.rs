@@ -74,7 +74,11 @@ impl Mesh {
 
     /// A mesh to render, not to process: it may hold coincident vertices (texture seams
     /// split apart) and zero-area faces, and keeps the given `normals` (one per vertex).
-    pub(crate) fn from_split_parts(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, normals: Vec<Vec3>) -> Mesh {
+    pub(crate) fn from_split_parts(
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        normals: Vec<Vec3>,
+    ) -> Mesh {
         Mesh { positions, triangles, normals: Some(normals) }
     }
 

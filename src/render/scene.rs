@@ -45,7 +45,14 @@ pub struct Scene {
 impl Scene {
     pub fn from_surface_map(map: SurfaceMap) -> Scene {
         let uv = map.state.uv.iter().map(|&[u, v]| Vec2::new(u as f32, v as f32)).collect();
-        Scene { mesh: map.mesh, frames: map.frames, uv, labels: map.state.labels, texel: map.texel, mapped: false }
+        Scene {
+            mesh: map.mesh,
+            frames: map.frames,
+            uv,
+            labels: map.state.labels,
+            texel: map.texel,
+            mapped: false,
+        }
     }
 
     /// A texture-mapped result: one vertex per distinct (vertex, sample coordinate) corner,
@@ -56,7 +63,8 @@ impl Scene {
         let file = &map.mesh;
         let graph = crate::synth::patches::graph::SurfaceGraph::new(&file.positions, &file.triangles, path)?;
         let mut index: std::collections::HashMap<(u32, [u32; 2]), u32> = std::collections::HashMap::new();
-        let (mut positions, mut normals, mut uv, mut labels) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut positions, mut normals, mut uv, mut labels) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let mut triangles = Vec::with_capacity(file.triangles.len());
         for (f, t) in file.triangles.iter().enumerate() {
             let corners: [u32; 3] = std::array::from_fn(|k| {

@@ -280,7 +280,10 @@ pub fn find_analysis(comments: &[String], ply: &Path) -> Option<PathBuf> {
         None => w.clone(),
     });
     let absolute = comment_value(comments, ANALYSIS_ABSOLUTE_KEY).map(PathBuf::from);
-    [beside, absolute, written].into_iter().flatten().find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
+    [beside, absolute, written]
+        .into_iter()
+        .flatten()
+        .find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
 }
 
 /// Reads a surface map: the vertex properties by name, faces as triangles.

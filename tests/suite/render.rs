@@ -112,7 +112,8 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
     let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
-    let scene = Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene =
+        Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
     let white =
         DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
     let material = Material::new(1, 1, vec![1.0; 3], vec![white]).unwrap();
@@ -404,7 +405,8 @@ fn four_samples_per_pixel_bring_edges_closer_to_a_64_sample_reference_than_one()
     let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
-    let scene = Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene =
+        Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
     let white =
         DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
     let material = Material::new(1, 1, vec![0.8; 3], vec![white]).unwrap();

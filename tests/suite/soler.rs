@@ -41,7 +41,12 @@ fn check_map(map: &UvMap, mesh: &Path) {
             let key = (map.cluster[f], t[k]);
             let uv = map.corner_uv[f][k];
             let seen = *at.entry(key).or_insert(uv);
-            assert!(seen.distance(uv) < 1e-3, "vertex {} has two coordinates in cluster {}", t[k], map.cluster[f]);
+            assert!(
+                seen.distance(uv) < 1e-3,
+                "vertex {} has two coordinates in cluster {}",
+                t[k],
+                map.cluster[f]
+            );
         }
     }
 }
@@ -52,7 +57,18 @@ fn the_bunny_keeps_every_face_renders_and_exports_the_sample_itself() {
     let analysis = analyze_gravel(dir.path(), "gravel", "0,0,64,64");
     let out = dir.path().join("bunny-uv.ply");
     let report = dir.path().join("report.json");
-    run(&["-q", "synth", s(&analysis), BUNNY, "--method", "soler2002", "-o", s(&out), "--report", s(&report)]);
+    run(&[
+        "-q",
+        "synth",
+        s(&analysis),
+        BUNNY,
+        "--method",
+        "soler2002",
+        "-o",
+        s(&out),
+        "--report",
+        s(&report),
+    ]);
     let map = read_uv_map(&out).expect("a uvmap");
     assert_eq!(map.mesh.triangles.len(), 3674);
     assert_eq!(map.sample, (64, 64));
@@ -61,8 +77,13 @@ fn the_bunny_keeps_every_face_renders_and_exports_the_sample_itself() {
     let levels = report["levels"].as_array().expect("levels");
     let faces: u64 = levels.iter().map(|l| l["faces"].as_u64().unwrap()).sum();
     assert_eq!(faces, 3674, "every face is mapped on exactly one level");
-    assert!(levels.iter().any(|l| l["mapped"].as_u64().unwrap() > 0 && l["level"].as_u64().unwrap() + 1 < levels.len() as u64),
-        "some patches are larger than one face");
+    assert!(
+        levels
+            .iter()
+            .any(|l| l["mapped"].as_u64().unwrap() > 0
+                && l["level"].as_u64().unwrap() + 1 < levels.len() as u64),
+        "some patches are larger than one face"
+    );
     // The same inputs give the same bytes.
     let again = dir.path().join("again.ply");
     run(&["-q", "synth", s(&analysis), BUNNY, "--method", "soler2002", "-o", s(&again)]);
@@ -108,7 +129,18 @@ fn a_plane_maps_as_one_undistorted_patch_and_an_obj_is_written_too() {
     std::fs::write(&plane, text).expect("plane");
     for ext in ["ply", "obj"] {
         let out = dir.path().join(format!("plane.{ext}"));
-        run(&["-q", "synth", s(&analysis), s(&plane), "--method", "soler2002", "--scale", "20", "-o", s(&out)]);
+        run(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            s(&plane),
+            "--method",
+            "soler2002",
+            "--scale",
+            "20",
+            "-o",
+            s(&out),
+        ]);
         let map = read_uv_map(&out).expect("a uvmap");
         check_map(&map, &plane);
         if ext == "ply" {
@@ -135,10 +167,31 @@ fn the_teapots_open_patches_are_mapped_and_non_manifold_input_is_refused() {
     check_map(&map, Path::new(teapot));
 
     let bad = dir.path().join("fin.obj");
-    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n").unwrap();
-    let refused = btfsynth(&["-q", "synth", s(&analysis), s(&bad), "--method", "soler2002", "-o", s(&dir.path().join("x.ply"))]);
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n")
+        .unwrap();
+    let refused = btfsynth(&[
+        "-q",
+        "synth",
+        s(&analysis),
+        s(&bad),
+        "--method",
+        "soler2002",
+        "-o",
+        s(&dir.path().join("x.ply")),
+    ]);
     assert_one_line_error(&refused, "not a manifold surface");
     assert!(!dir.path().join("x.ply").exists());
-    let usage = btfsynth(&["-q", "synth", s(&analysis), teapot, "--method", "soler2002", "--vertices", "5000", "-o", s(&out)]);
+    let usage = btfsynth(&[
+        "-q",
+        "synth",
+        s(&analysis),
+        teapot,
+        "--method",
+        "soler2002",
+        "--vertices",
+        "5000",
+        "-o",
+        s(&out),
+    ]);
     assert_usage_error(&usage, "--method soler2002");
 }

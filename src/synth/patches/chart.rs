@@ -58,7 +58,10 @@ impl Flattening {
             .map(|c| {
                 let cluster = &h.clusters[c];
                 let parent = cluster.parent;
-                if parent == NONE || !h.clusters[parent as usize].disc || h.clusters[parent as usize].controls.len() < 3 {
+                if parent == NONE
+                    || !h.clusters[parent as usize].disc
+                    || h.clusters[parent as usize].controls.len() < 3
+                {
                     return Vec::new();
                 }
                 let base = Base::new(graph, h, parent);
@@ -162,7 +165,8 @@ fn control_polygon(graph: &SurfaceGraph, h: &Hierarchy, c: u32) -> Option<Vec<Ve
     if cluster.is_face() {
         // A face is its own polygon, exactly (even one without area).
         let (ab, ac, bc) = (p[0].distance(p[1]), p[0].distance(p[2]), p[1].distance(p[2]));
-        let x = [Vec2::ZERO, Vec2::new(ab, 0.0), super::mapping::unfold(Vec2::ZERO, Vec2::new(ab, 0.0), ac, bc)];
+        let x =
+            [Vec2::ZERO, Vec2::new(ab, 0.0), super::mapping::unfold(Vec2::ZERO, Vec2::new(ab, 0.0), ac, bc)];
         let mean = (x[0] + x[1] + x[2]) / 3.0;
         return Some(x.iter().map(|&v| v - mean).collect());
     }
@@ -276,7 +280,13 @@ impl Base {
             stretch_of.remove(&cluster.border[b]);
             stretch_normal.push(normal.try_normalize().unwrap_or(Vec3::Z));
         }
-        Base { controls, positions, stretch_of, stretch_normal, mean_plane_normal: mean_normal(graph, &cluster.faces) }
+        Base {
+            controls,
+            positions,
+            stretch_of,
+            stretch_normal,
+            mean_plane_normal: mean_normal(graph, &cluster.faces),
+        }
     }
 
     /// Coordinates of graph vertex `v` (see the module documentation).
@@ -303,7 +313,10 @@ impl Base {
             if let Some(w) = barycentric(x, q[i], q[j], q[k]) {
                 let size = w.iter().fold(0f64, |m, c| m.max(c.abs()));
                 if best.is_none_or(|(b, _)| size < b) {
-                    best = Some((size, [(i as u16, w[0] as f32), (j as u16, w[1] as f32), (k as u16, w[2] as f32)]));
+                    best = Some((
+                        size,
+                        [(i as u16, w[0] as f32), (j as u16, w[1] as f32), (k as u16, w[2] as f32)],
+                    ));
                 }
             }
         };

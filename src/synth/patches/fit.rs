@@ -103,7 +103,13 @@ pub struct FitImage {
 impl FitImage {
     /// From per-texel vectors (`[y][x][c]`), centred and scaled so that the variances of the
     /// channels sum to 1 (one scale for all, keeping their relative weights).
-    pub fn new(width: usize, height: usize, channels: usize, mut values: Vec<f32>, tileable: bool) -> Result<FitImage> {
+    pub fn new(
+        width: usize,
+        height: usize,
+        channels: usize,
+        mut values: Vec<f32>,
+        tileable: bool,
+    ) -> Result<FitImage> {
         if width == 0 || height == 0 || channels == 0 || values.len() != width * height * channels {
             return Err(Error::invalid("a sample to fit against needs at least one texel and one channel"));
         }
@@ -111,7 +117,9 @@ impl FitImage {
         let mut total = 0.0;
         for c in 0..channels {
             let mean = values.iter().skip(c).step_by(channels).map(|&v| f64::from(v)).sum::<f64>() / n;
-            let var = values.iter().skip(c).step_by(channels).map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>() / n;
+            let var =
+                values.iter().skip(c).step_by(channels).map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>()
+                    / n;
             values.iter_mut().skip(c).step_by(channels).for_each(|v| *v -= mean as f32);
             total += var;
         }
@@ -154,7 +162,12 @@ impl FitImage {
         let (fx, fy) = (s.x - x0, s.y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
         out.iter_mut().for_each(|v| *v = 0.0);
-        for (dx, dy, w) in [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)] {
+        for (dx, dy, w) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
             if w > 0.0 {
                 for (o, v) in out.iter_mut().zip(self.texel(x0 + dx, y0 + dy)) {
                     *o += w * v;
@@ -166,7 +179,10 @@ impl FitImage {
     /// Whether `s` lies inside the sample (always, for a tileable one).
     pub fn inside(&self, s: Vec2) -> bool {
         self.tileable
-            || (s.x >= -1e-3 && s.y >= -1e-3 && s.x <= self.width as f32 - 1.0 + 1e-3 && s.y <= self.height as f32 - 1.0 + 1e-3)
+            || (s.x >= -1e-3
+                && s.y >= -1e-3
+                && s.x <= self.width as f32 - 1.0 + 1e-3
+                && s.y <= self.height as f32 - 1.0 + 1e-3)
     }
 }
 
@@ -296,7 +312,8 @@ impl Fitter {
             Vec2::ZERO
         } else {
             let (w, h) = (image.width as f32 - 1.0, image.height as f32 - 1.0);
-            let corners = [Vec2::ZERO, Vec2::new(w, 0.0), Vec2::new(w, h), Vec2::new(0.0, h)].map(|c| rotate * c);
+            let corners =
+                [Vec2::ZERO, Vec2::new(w, 0.0), Vec2::new(w, h), Vec2::new(0.0, h)].map(|c| rotate * c);
             -corners.iter().fold(Vec2::splat(f32::INFINITY), |m, &c| m.min(c))
         };
         let channels = image.channels;
@@ -370,11 +387,18 @@ impl Fitter {
         let image = &self.image;
         if image.tileable {
             let ok = mw + image.width <= self.nx + 1 && mh + image.height <= self.ny + 1;
-            return (0..image.height).map(|_| if ok { (0, image.width as i64 - 1) } else { (1, 0) }).collect();
+            return (0..image.height)
+                .map(|_| if ok { (0, image.width as i64 - 1) } else { (1, 0) })
+                .collect();
         }
         let rotation = &self.rotations[k];
         let (w, h) = (image.width as f32 - 1.0, image.height as f32 - 1.0);
-        let corners = [Vec2::ZERO, Vec2::new(mw as f32 - 1.0, 0.0), Vec2::new(mw as f32 - 1.0, mh as f32 - 1.0), Vec2::new(0.0, mh as f32 - 1.0)];
+        let corners = [
+            Vec2::ZERO,
+            Vec2::new(mw as f32 - 1.0, 0.0),
+            Vec2::new(mw as f32 - 1.0, mh as f32 - 1.0),
+            Vec2::new(0.0, mh as f32 - 1.0),
+        ];
         let x_max = self.nx as i64 - mw as i64;
         let y_max = self.ny as i64 - mh as i64;
         (0..=y_max.max(-1))
@@ -437,7 +461,8 @@ impl Fitter {
                         *p -= 2.0 * i.conj() * t;
                     }
                 }
-                for ((p, j), t) in product.iter_mut().zip(&spectra[channels]).zip(&rotation.spectra[channels]) {
+                for ((p, j), t) in product.iter_mut().zip(&spectra[channels]).zip(&rotation.spectra[channels])
+                {
                     *p += j.conj() * t;
                 }
                 let mut e = vec![0f32; self.nx * self.ny];
@@ -458,7 +483,10 @@ impl Fitter {
                 }))
             })
             .collect();
-        let best = best?.into_iter().flatten().min_by(|a, b| a.error.total_cmp(&b.error).then(a.rotation.cmp(&b.rotation)));
+        let best = best?
+            .into_iter()
+            .flatten()
+            .min_by(|a, b| a.error.total_cmp(&b.error).then(a.rotation.cmp(&b.rotation)));
         Ok(best.ok_or(Unplaced::TooLarge))
     }
 
@@ -535,7 +563,11 @@ mod tests {
             // A mask of noise fits about as badly as two random texels differ.
             let mut rng = ChaCha8Rng::seed_from_u64(9);
             let mut random = mask.clone();
-            random.values.iter_mut().zip(mask.support.iter().cycle()).for_each(|(v, &j)| *v = j * (rng.random::<f32>() - 0.5) * 3.4);
+            random
+                .values
+                .iter_mut()
+                .zip(mask.support.iter().cycle())
+                .for_each(|(v, &j)| *v = j * (rng.random::<f32>() - 0.5) * 3.4);
             let q = fitter.fit(&random).expect("fft").expect("placed");
             assert!(q.error > 0.8, "{}", q.error);
         }

@@ -53,7 +53,10 @@ impl SurfaceGraph {
     /// Joins `triangles` over `positions` (a file's, named `path` in errors).
     pub fn new(positions: &[Vec3], triangles: &[[u32; 3]], path: &Path) -> Result<SurfaceGraph> {
         let refuse = |m: String| {
-            Error::format(path, format!("{m}; --method soler2002 maps the mesh as it is and does not repair it"))
+            Error::format(
+                path,
+                format!("{m}; --method soler2002 maps the mesh as it is and does not repair it"),
+            )
         };
         // The file's own connectivity must be a manifold: at most two faces on an edge, one
         // fan of faces around a vertex.
@@ -312,7 +315,11 @@ fn orientation(links: &Links) -> std::result::Result<Vec<bool>, (u32, u32)> {
 /// Renumbers welded corners so that each fan of faces around a welded point is a vertex of
 /// its own; returns the corners, per graph vertex its file vertex (the welded one), and per
 /// file vertex a graph vertex at its point.
-fn split_fans(corners: Vec<[u32; 3]>, across: &[[u32; 3]], remap: &[u32]) -> (Vec<[u32; 3]>, Vec<u32>, Vec<u32>) {
+fn split_fans(
+    corners: Vec<[u32; 3]>,
+    across: &[[u32; 3]],
+    remap: &[u32],
+) -> (Vec<[u32; 3]>, Vec<u32>, Vec<u32>) {
     let points = remap.len();
     let mut faces_of: Vec<Vec<u32>> = vec![Vec::new(); points];
     for (f, t) in corners.iter().enumerate() {

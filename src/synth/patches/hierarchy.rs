@@ -267,7 +267,13 @@ fn grow_from(graph: &SurfaceGraph, seed: u32, label: u32, s: &mut Scratch) {
 }
 
 /// Splits the connected `faces` into about `n` disc regions (see the module documentation).
-fn split(graph: &SurfaceGraph, faces: &[u32], n: usize, rng: &mut ChaCha8Rng, s: &mut Scratch) -> Vec<Vec<u32>> {
+fn split(
+    graph: &SurfaceGraph,
+    faces: &[u32],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+    s: &mut Scratch,
+) -> Vec<Vec<u32>> {
     let mut regions = grow(graph, faces, n, rng, s);
     if regions.len() < 2 {
         // Faces that cannot be told apart by distance (repeated faces): one each.
@@ -282,15 +288,22 @@ fn split(graph: &SurfaceGraph, faces: &[u32], n: usize, rng: &mut ChaCha8Rng, s:
 }
 
 /// `n` regions grown from farthest-point seeds.
-fn grow(graph: &SurfaceGraph, faces: &[u32], n: usize, rng: &mut ChaCha8Rng, s: &mut Scratch) -> Vec<Vec<u32>> {
+fn grow(
+    graph: &SurfaceGraph,
+    faces: &[u32],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+    s: &mut Scratch,
+) -> Vec<Vec<u32>> {
     s.mark(faces);
     let mut seed = faces[rng.random_range(0..faces.len())];
     for label in 0..n.min(faces.len()) as u32 {
         grow_from(graph, seed, label, s);
         // The next seed is the face farthest from every seed so far.
-        let far = faces.iter().copied().max_by(|&a, &b| {
-            s.dist[a as usize].total_cmp(&s.dist[b as usize]).then_with(|| b.cmp(&a))
-        });
+        let far = faces
+            .iter()
+            .copied()
+            .max_by(|&a, &b| s.dist[a as usize].total_cmp(&s.dist[b as usize]).then_with(|| b.cmp(&a)));
         match far {
             Some(f) if s.dist[f as usize] > 0.0 => seed = f,
             _ => break,
@@ -360,7 +373,14 @@ fn regularise(graph: &SurfaceGraph, regions: &mut [Vec<u32>], s: &mut Scratch) {
 }
 
 /// Splits `region` in two until every piece is a disc, appending the pieces to `out`.
-fn discs(graph: &SurfaceGraph, region: Vec<u32>, rng: &mut ChaCha8Rng, s: &mut Scratch, out: &mut Vec<Vec<u32>>, depth: u32) {
+fn discs(
+    graph: &SurfaceGraph,
+    region: Vec<u32>,
+    rng: &mut ChaCha8Rng,
+    s: &mut Scratch,
+    out: &mut Vec<Vec<u32>>,
+    depth: u32,
+) {
     if region.len() == 1 || disc_border(graph, &region, s).is_some() {
         out.push(region);
         return;
@@ -471,7 +491,11 @@ fn control_vertices(graph: &SurfaceGraph, border: &[u32], owner: &[u32]) -> Vec<
     let perimeter = arc[n];
     let gap = |a: u32, b: u32| {
         let d = arc[b as usize] - arc[a as usize];
-        if b > a { d } else { d + perimeter }
+        if b > a {
+            d
+        } else {
+            d + perimeter
+        }
     };
     if controls.is_empty() {
         controls.push(0);
@@ -529,7 +553,11 @@ mod tests {
                 }
                 if l > 0 {
                     assert!(cluster.disc, "level {l} cluster {c} is not a disc");
-                    assert!(cluster.controls.len() >= 3, "cluster {c} has {} controls", cluster.controls.len());
+                    assert!(
+                        cluster.controls.len() >= 3,
+                        "cluster {c} has {} controls",
+                        cluster.controls.len()
+                    );
                     let parent = &h.clusters[cluster.parent as usize];
                     assert!(cluster.faces.iter().all(|f| parent.faces.contains(f)));
                 }

@@ -1,17 +1,20 @@
 //! Coarse-to-fine mapping with a priority queue (Soler et al. §2.2), the masks of §4.1 and
 //! the relaxation of §4.4.
 //!
-//! Level by level, coarse to fine, every cluster the level must cover waits in a priority
-//! queue: those with the most textured neighbouring regions first (then the flattest). A
-//! cluster is flattened ([`super::chart`]); if it is not a disc, folds, or its flattening
-//! error is over the limit, its children go to the next level. Otherwise its textured
+//! Round by round, coarse to fine, the clusters that cover what is not yet textured wait in
+//! a priority queue: those with the most textured neighbouring regions first (then the
+//! coarser, then the flattest). A cluster is flattened ([`super::chart`]); if it is not a
+//! disc, folds, or its flattening error is over the limit, its children go to the next
+//! round. Otherwise its textured
 //! neighbours' faces within a band of the border are unfolded into its frame and drawn with
 //! their texture: the mask. The mask's best placement in the sample ([`super::fit`]) maps
 //! the cluster, if its error is under the threshold; else the children go to the next
-//! level. A cluster with no textured neighbour takes a random placement, which is how the
-//! mapping starts (at the coarsest level with a flat enough cluster, the flattest first)
-//! and how it restarts on a separate piece. Single faces are always mapped, with their best
-//! placement: the finest scale fills what is left as well as it can.
+//! round. A cluster with no textured neighbour takes a random placement only on a piece of
+//! the surface where nothing is textured yet, which is how the mapping starts (at the
+//! coarsest level with a flat enough cluster, the flattest first); elsewhere it waits, as it
+//! is, for a later round, when the growth around it has reached it. Single faces of the last
+//! level are always mapped, with their best placement: the finest scale fills what is left
+//! as well as it can.
 
 use super::chart::{Chart, Flattening};
 use super::fit::{Fitter, Mask, Placement, Unplaced};
@@ -25,7 +28,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{BinaryHeap, HashMap, HashSet, VecDeque};
 use std::time::Instant;
 
 /// The texture on the graph's faces.
@@ -35,30 +38,53 @@ pub struct Mapping {
     pub mapped_by: Vec<u32>,
     /// Per graph face, the sample coordinate (texels, centres at integers) of each corner.
     pub face_uv: Vec<[Vec2; 3]>,
+    /// The connected pieces of the surface (level-0 clusters) where a patch has been placed.
+    started_pieces: HashSet<u32>,
 }
 
 impl Mapping {
     fn new(faces: usize) -> Mapping {
-        Mapping { mapped_by: vec![NONE; faces], face_uv: vec![[Vec2::ZERO; 3]; faces] }
+        Mapping {
+            mapped_by: vec![NONE; faces],
+            face_uv: vec![[Vec2::ZERO; 3]; faces],
+            started_pieces: HashSet::new(),
+        }
     }
 }
 
 /// What became of a cluster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Outcome {
-    Mapped { started: bool },
+    Mapped {
+        started: bool,
+    },
     NotDisc,
     Distorted,
     TooLarge,
     PoorFit,
+    /// No textured neighbour, on a piece of the surface already started elsewhere: the
+    /// cluster waits for the next round as it is. The paper queues only the neighbours of
+    /// textured clusters; a random start here would make its whole border a seam.
+    Unreached,
 }
 
-/// A queue entry: more textured neighbours first, then the flatter, then the lower id.
+/// A queue entry: more textured neighbours first, then the coarser (a larger patch while
+/// one still fits), then the flatter, then the lower id.
 #[derive(Clone, Copy, PartialEq)]
 struct Key {
     textured: u32,
+    level: u32,
     flat: f32,
     cluster: u32,
+}
+
+/// What a round of [`Mapper::drain`] reads and writes.
+struct Round<'a> {
+    charts: &'a HashMap<u32, Option<Chart>>,
+    reports: &'a mut [LevelReport],
+    /// Per level, the fitting errors of its fits.
+    errors: &'a mut [Vec<f32>],
+    mapping: &'a mut Mapping,
 }
 
 impl Eq for Key {}
@@ -67,6 +93,7 @@ impl Ord for Key {
     fn cmp(&self, other: &Self) -> Ordering {
         self.textured
             .cmp(&other.textured)
+            .then_with(|| other.level.cmp(&self.level))
             .then_with(|| other.flat.total_cmp(&self.flat))
             .then_with(|| other.cluster.cmp(&self.cluster))
     }
@@ -92,75 +119,103 @@ impl Mapper<'_> {
     pub fn run(&self, rng: &mut ChaCha8Rng, progress: &dyn Progress) -> Result<(Mapping, Vec<LevelReport>)> {
         let (graph, h) = (self.graph, self.hierarchy);
         let mut mapping = Mapping::new(graph.face_count());
-        let mut reports = Vec::new();
+        let mut reports: Vec<LevelReport> = h
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(l, level)| LevelReport { level: l, clusters: level.len(), ..LevelReport::default() })
+            .collect();
+        let mut errors: Vec<Vec<f32>> = vec![Vec::new(); h.levels.len()];
+        let mut charts: HashMap<u32, Option<Chart>> = HashMap::new();
         let mut eligible: Vec<u32> = h.levels[0].clone();
         progress.start("mapping patches", graph.face_count() as u64);
-        for (l, level) in h.levels.iter().enumerate() {
-            let started = Instant::now();
-            let mut report = LevelReport { level: l, clusters: level.len(), ..LevelReport::default() };
-            if eligible.is_empty() {
-                report.seconds = started.elapsed().as_secs_f64();
-                reports.push(report);
-                continue;
-            }
-            let charts: HashMap<u32, Option<Chart>> =
-                eligible.par_iter().map(|&c| (c, self.flattening.chart(graph, h, c))).collect();
-            let flat = |c: u32| charts[&c].as_ref().map_or(f32::INFINITY, |ch| ch.flat_error);
-            let mut pending: HashMap<u32, bool> = eligible.iter().map(|&c| (c, true)).collect();
-            let mut heap: BinaryHeap<Key> = eligible
-                .iter()
-                .map(|&c| Key { textured: self.textured_neighbours(c, &mapping), flat: flat(c), cluster: c })
-                .collect();
-            let mut next = Vec::new();
-            let mut errors: Vec<f32> = Vec::new();
-            while let Some(key) = heap.pop() {
-                let c = key.cluster;
-                if pending.get(&c) != Some(&true) {
-                    continue;
-                }
-                let textured = self.textured_neighbours(c, &mapping);
-                if textured != key.textured {
-                    heap.push(Key { textured, ..key });
-                    continue;
-                }
-                pending.insert(c, false);
-                report.tried += 1;
-                let (outcome, error) = self.process(c, charts[&c].as_ref(), &mut mapping, rng)?;
-                errors.extend(error);
-                match outcome {
-                    Outcome::Mapped { started } => {
-                        report.mapped += 1;
-                        report.started += usize::from(started);
-                        let faces = h.clusters[c as usize].faces.len();
-                        report.faces += faces;
-                        progress.advance(faces as u64);
-                        for &n in &h.clusters[c as usize].neighbours {
-                            if pending.get(&n) == Some(&true) {
-                                let textured = self.textured_neighbours(n, &mapping);
-                                heap.push(Key { textured, flat: flat(n), cluster: n });
-                            }
-                        }
-                    }
-                    refused => {
-                        match refused {
-                            Outcome::NotDisc => report.not_disc += 1,
-                            Outcome::Distorted => report.distorted += 1,
-                            Outcome::TooLarge => report.too_large += 1,
-                            _ => report.poor_fit += 1,
-                        }
-                        next.extend_from_slice(&h.clusters[c as usize].children);
-                    }
-                }
-            }
+        // Each round drains a queue of clusters that together cover every face not yet
+        // mapped; refused clusters hand their children to the next round, unreached ones
+        // wait there as they are (see [`Outcome::Unreached`]).
+        while !eligible.is_empty() {
+            let fresh: Vec<u32> = eligible.iter().copied().filter(|c| !charts.contains_key(c)).collect();
+            let built: Vec<(u32, Option<Chart>)> =
+                fresh.par_iter().map(|&c| (c, self.flattening.chart(graph, h, c))).collect();
+            charts.extend(built);
+            let mut round =
+                Round { charts: &charts, reports: &mut reports, errors: &mut errors, mapping: &mut mapping };
+            eligible = self.drain(&eligible, &mut round, rng, progress)?;
+        }
+        for (report, errors) in reports.iter_mut().zip(&mut errors) {
             errors.sort_by(f32::total_cmp);
             report.median_fit_error = errors.get(errors.len() / 2).copied().unwrap_or(f32::NAN);
-            report.seconds = started.elapsed().as_secs_f64();
-            reports.push(report);
-            eligible = next;
         }
         progress.finish();
         debug_assert!(mapping.mapped_by.iter().all(|&c| c != NONE));
         Ok((mapping, reports))
+    }
+
+    /// One round: the clusters of `eligible` by priority; returns those left for the next.
+    fn drain(
+        &self,
+        eligible: &[u32],
+        round: &mut Round,
+        rng: &mut ChaCha8Rng,
+        progress: &dyn Progress,
+    ) -> Result<Vec<u32>> {
+        let h = self.hierarchy;
+        let charts = round.charts;
+        let flat = |c: u32| charts[&c].as_ref().map_or(f32::INFINITY, |ch| ch.flat_error);
+        let key = |c: u32, mapping: &Mapping| Key {
+            textured: self.textured_neighbours(c, mapping),
+            level: h.clusters[c as usize].level,
+            flat: flat(c),
+            cluster: c,
+        };
+        let mut pending: HashMap<u32, bool> = eligible.iter().map(|&c| (c, true)).collect();
+        let mut heap: BinaryHeap<Key> = eligible.iter().map(|&c| key(c, round.mapping)).collect();
+        let mut next = Vec::new();
+        while let Some(popped) = heap.pop() {
+            let c = popped.cluster;
+            if pending.get(&c) != Some(&true) {
+                continue;
+            }
+            let textured = self.textured_neighbours(c, round.mapping);
+            if textured != popped.textured {
+                heap.push(Key { textured, ..popped });
+                continue;
+            }
+            pending.insert(c, false);
+            let started = Instant::now();
+            let (outcome, error) = self.process(c, charts[&c].as_ref(), round.mapping, rng)?;
+            let cluster = &h.clusters[c as usize];
+            let report = &mut round.reports[cluster.level as usize];
+            report.seconds += started.elapsed().as_secs_f64();
+            round.errors[cluster.level as usize].extend(error);
+            report.tried += usize::from(outcome != Outcome::Unreached);
+            match outcome {
+                Outcome::Mapped { started } => {
+                    report.mapped += 1;
+                    report.started += usize::from(started);
+                    report.faces += cluster.faces.len();
+                    progress.advance(cluster.faces.len() as u64);
+                    for &n in &cluster.neighbours {
+                        if pending.get(&n) == Some(&true) {
+                            heap.push(key(n, round.mapping));
+                        }
+                    }
+                }
+                Outcome::Unreached => {
+                    report.unreached += 1;
+                    next.push(c);
+                }
+                refused => {
+                    match refused {
+                        Outcome::NotDisc => report.not_disc += 1,
+                        Outcome::Distorted => report.distorted += 1,
+                        Outcome::TooLarge => report.too_large += 1,
+                        _ => report.poor_fit += 1,
+                    }
+                    next.extend_from_slice(&cluster.children);
+                }
+            }
+        }
+        Ok(next)
     }
 
     /// How many distinct textured regions border cluster `c`.
@@ -199,7 +254,8 @@ impl Mapper<'_> {
         }
         // The chart in texels, turned by a random angle so that the fixed rotations of the
         // sample do not include the trivial continuation of a neighbour (§4.2).
-        let turn = Mat2::from_angle(rng.random_range(0.0..std::f32::consts::TAU)) * self.params.texels_per_unit;
+        let turn =
+            Mat2::from_angle(rng.random_range(0.0..std::f32::consts::TAU)) * self.params.texels_per_unit;
         let local: Vec<Vec2> = chart.vertices.iter().map(|&(_, p)| turn * p).collect();
         if !single && !self.may_fit(&local) {
             return Ok((Outcome::TooLarge, None));
@@ -208,7 +264,15 @@ impl Mapper<'_> {
         let footprint = || local.iter().map(|&p| mirror(p));
         let (lo, hi) = bounds(footprint().chain(band.iter().flat_map(|(_, p)| p.map(mirror))));
         let origin = (lo - Vec2::ONE).floor();
-        let mask = (!band.is_empty()).then(|| self.mask(&band, origin, hi, mapping)).filter(|m| m.count() > 0);
+        let mask =
+            (!band.is_empty()).then(|| self.mask(&band, origin, hi, mapping)).filter(|m| m.count() > 0);
+        // A cluster of the last level cannot wait; neither can one beside a textured face
+        // whose band came out empty (it would wait for ever).
+        let piece = self.hierarchy.owner[0][cluster.faces[0] as usize];
+        let may_wait = !cluster.children.is_empty() && self.textured_neighbours(c, mapping) == 0;
+        if mask.is_none() && may_wait && self.params.matching && mapping.started_pieces.contains(&piece) {
+            return Ok((Outcome::Unreached, None));
+        }
         // A single face first tries to continue one of its textured neighbours exactly: the
         // finest level fills gaps, and a continuation leaves no seam on that side.
         let continued = match &mask {
@@ -221,7 +285,9 @@ impl Mapper<'_> {
             (None, None) => None,
         };
         let (mask_to_sample, origin, error) = match fitted {
-            Some(Ok((map, error))) if single || error / 2.0 <= self.params.max_fit_error => (map, origin, Some(error / 2.0)),
+            Some(Ok((map, error))) if single || error / 2.0 <= self.params.max_fit_error => {
+                (map, origin, Some(error / 2.0))
+            }
             Some(Ok((_, error))) => return Ok((Outcome::PoorFit, Some(error / 2.0))),
             Some(Err(Unplaced::TooLarge)) if !single => return Ok((Outcome::TooLarge, None)),
             // No textured neighbour (or a single face too large to match): a random placement.
@@ -237,7 +303,8 @@ impl Mapper<'_> {
         };
         let started = error.is_none();
         // Chart texels → mask pixels → sample.
-        let to_mask = Affine2::from_translation(-origin) * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)));
+        let to_mask = Affine2::from_translation(-origin)
+            * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)));
         let mut to_sample = mask_to_sample * to_mask;
         let image = &self.fitter.image;
         if image.tileable {
@@ -251,6 +318,7 @@ impl Mapper<'_> {
         if self.params.relax && !band.is_empty() && !single {
             super::relax::relax(self, c, chart, &mut uv, mapping, rng);
         }
+        mapping.started_pieces.insert(piece);
         for (&f, corners) in cluster.faces.iter().zip(&chart.corners) {
             mapping.mapped_by[f as usize] = c;
             mapping.face_uv[f as usize] = corners.map(|i| uv[i as usize]);
@@ -283,10 +351,13 @@ impl Mapper<'_> {
             let pairs: Vec<(Vec2, Vec2)> = band
                 .iter()
                 .filter(|(g, _)| mapping.mapped_by[*g as usize] == owner)
-                .flat_map(|(g, p)| (0..3).map(move |k| (mirror(p[k]) - origin, mapping.face_uv[*g as usize][k])))
+                .flat_map(|(g, p)| {
+                    (0..3).map(move |k| (mirror(p[k]) - origin, mapping.face_uv[*g as usize][k]))
+                })
                 .collect();
             let n = pairs.len() as f32;
-            let (cm, cs) = pairs.iter().fold((Vec2::ZERO, Vec2::ZERO), |(a, b), (m, s)| (a + *m / n, b + *s / n));
+            let (cm, cs) =
+                pairs.iter().fold((Vec2::ZERO, Vec2::ZERO), |(a, b), (m, s)| (a + *m / n, b + *s / n));
             let (dot, cross) = pairs.iter().fold((0f32, 0f32), |(d, c), (m, s)| {
                 let (m, s) = (*m - cm, *s - cs);
                 (d + m.dot(s), c + m.perp_dot(s))
@@ -367,7 +438,13 @@ impl Mapper<'_> {
 
     /// Textured faces outside cluster `c` within the band width of its border, unfolded
     /// into its frame (`local`: the chart's vertices in texels): (face, corner positions).
-    pub(super) fn band(&self, c: u32, chart: &Chart, local: &[Vec2], mapping: &Mapping) -> Vec<(u32, [Vec2; 3])> {
+    pub(super) fn band(
+        &self,
+        c: u32,
+        chart: &Chart,
+        local: &[Vec2],
+        mapping: &Mapping,
+    ) -> Vec<(u32, [Vec2; 3])> {
         let (graph, h) = (self.graph, self.hierarchy);
         let cluster = &h.clusters[c as usize];
         let owner = &h.owner[cluster.level as usize];
@@ -471,7 +548,9 @@ pub(super) fn mirror(p: Vec2) -> Vec2 {
 }
 
 fn bounds(points: impl Iterator<Item = Vec2>) -> (Vec2, Vec2) {
-    points.fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(p), hi.max(p)))
+    points.fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    })
 }
 
 /// The apex of a triangle on the left of `a → b` with sides `la` (to a) and `lb` (to b).

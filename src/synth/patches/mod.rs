@@ -130,11 +130,13 @@ pub struct LevelReport {
     /// Faces mapped on this level.
     pub faces: usize,
     /// Given up: not a disc or without a simple control polygon / too distorted flattened /
-    /// larger than the sample allows / fitting error over the threshold.
+    /// larger than the sample allows / fitting error over the threshold / no textured
+    /// neighbour on a piece of the surface already started (left to the next level).
     pub not_disc: usize,
     pub distorted: usize,
     pub too_large: usize,
     pub poor_fit: usize,
+    pub unreached: usize,
     /// Median fitting error of the level's fits, as a fraction of a random placement's
     /// (NaN without fits).
     pub median_fit_error: f32,
@@ -190,7 +192,13 @@ pub fn map_mesh(
     let fitter = Fitter::new(sample, params.rotations)?;
     seconds[2] = started.elapsed().as_secs_f64();
     let started = Instant::now();
-    let mapper = mapping::Mapper { graph: &graph, hierarchy: &hierarchy, flattening: &flattening, fitter: &fitter, params };
+    let mapper = mapping::Mapper {
+        graph: &graph,
+        hierarchy: &hierarchy,
+        flattening: &flattening,
+        fitter: &fitter,
+        params,
+    };
     let (mapping, levels) = mapper.run(&mut rng, progress)?;
     seconds[3] = started.elapsed().as_secs_f64();
     let (corner_uv, cluster) = on_file_faces(&graph, &mapping, triangles);
@@ -211,7 +219,11 @@ pub fn map_mesh(
 /// The graph faces' coordinates on the file's faces, in the file's corner order; a face
 /// without area takes, per corner, the coordinate its vertex has in the graph face that
 /// shares most of its corners (else in any face around the vertex).
-fn on_file_faces(graph: &SurfaceGraph, mapping: &mapping::Mapping, triangles: &[[u32; 3]]) -> (Vec<[Vec2; 3]>, Vec<u32>) {
+fn on_file_faces(
+    graph: &SurfaceGraph,
+    mapping: &mapping::Mapping,
+    triangles: &[[u32; 3]],
+) -> (Vec<[Vec2; 3]>, Vec<u32>) {
     let faces = triangles.len();
     let mut uv = vec![[Vec2::ZERO; 3]; faces];
     let mut cluster = vec![NONE; faces];
@@ -235,7 +247,9 @@ fn on_file_faces(graph: &SurfaceGraph, mapping: &mapping::Mapping, triangles: &[
             .iter()
             .filter(|&&v| v != NONE)
             .flat_map(|&v| graph.faces_of(v).iter().copied())
-            .max_by_key(|&h| (corners.iter().filter(|&&v| graph.corner_of(h, v).is_some()).count(), std::cmp::Reverse(h)));
+            .max_by_key(|&h| {
+                (corners.iter().filter(|&&v| graph.corner_of(h, v).is_some()).count(), std::cmp::Reverse(h))
+            });
         for k in 0..3 {
             let v = corners[k];
             if v == NONE {

@@ -67,7 +67,9 @@ pub fn write_uv_map(
     let bytes = match ext.as_str() {
         "ply" => ply_bytes(positions, triangles, mapping, provenance.sample, &comments),
         "obj" => obj_bytes(positions, triangles, mapping, provenance.sample, &comments),
-        _ => return Err(Error::invalid(format!("{}: the output must be a .ply or .obj file", path.display()))),
+        _ => {
+            return Err(Error::invalid(format!("{}: the output must be a .ply or .obj file", path.display())))
+        }
     };
     crate::fsutil::write_file_atomic(path, &bytes)
 }
@@ -253,7 +255,9 @@ pub fn read_uv_map(path: &Path) -> Result<UvMap> {
     let tileable = value("tileable") == Some("true");
     let corner_uv: Vec<[Vec2; 3]> =
         uvs.corners.iter().map(|c| c.map(|i| from_file_uv(uvs.coords[i as usize], sample))).collect();
-    if let Some(f) = corner_uv.iter().position(|c| c.iter().any(|s| !s.is_finite() || s.abs().max_element() > 1e7)) {
+    if let Some(f) =
+        corner_uv.iter().position(|c| c.iter().any(|s| !s.is_finite() || s.abs().max_element() > 1e7))
+    {
         return Err(bad(&format!("face {f} has a texture coordinate far outside the sample")));
     }
     let faces = mesh.triangles.len();

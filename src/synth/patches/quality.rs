@@ -55,14 +55,17 @@ pub fn seam_quality(
         })
         .collect();
     let owner: Vec<u32> = graph.file_face.iter().map(|&f| cluster[f as usize]).collect();
-    let mut faces: Vec<u32> = (0..graph.face_count() as u32).filter(|&g| graph.area[g as usize] > 0.0).collect();
+    let mut faces: Vec<u32> =
+        (0..graph.face_count() as u32).filter(|&g| graph.area[g as usize] > 0.0).collect();
     faces.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
     faces.truncate(windows);
     let side = PATCH_SIDE;
     let half = (side / 2) as f32;
     let (mut border, mut interior) = (Vec::new(), Vec::new());
     for &f in &faces {
-        let Some((values, clusters)) = window(&graph, &uv, &owner, f, sample, tileable, texels_per_unit, half) else {
+        let Some((values, clusters)) =
+            window(&graph, &uv, &owner, f, sample, tileable, texels_per_unit, half)
+        else {
             continue;
         };
         if clusters > 1 {
@@ -115,7 +118,12 @@ fn window(
             let k = (0..3).find(|&k| known[k] && known[(k + 1) % 3]).unwrap_or(0);
             let (a, b, apex) = (c[k], c[(k + 1) % 3], c[(k + 2) % 3]);
             let p = |v: u32| graph.positions[v as usize];
-            let at = unfold(placed[&a], placed[&b], p(a).distance(p(apex)) * scale, p(b).distance(p(apex)) * scale);
+            let at = unfold(
+                placed[&a],
+                placed[&b],
+                p(a).distance(p(apex)) * scale,
+                p(b).distance(p(apex)) * scale,
+            );
             placed.insert(apex, at);
         } else if known.iter().any(|&k| !k) {
             continue;
@@ -159,14 +167,20 @@ fn window(
 fn bilinear(picture: &Picture, s: Vec2, tileable: bool) -> [f32; 3] {
     let (w, h) = (picture.width as i64, picture.height as i64);
     let at = |x: i64, y: i64| {
-        let (x, y) = if tileable { (x.rem_euclid(w), y.rem_euclid(h)) } else { (x.clamp(0, w - 1), y.clamp(0, h - 1)) };
+        let (x, y) = if tileable {
+            (x.rem_euclid(w), y.rem_euclid(h))
+        } else {
+            (x.clamp(0, w - 1), y.clamp(0, h - 1))
+        };
         picture.rgb[y as usize * picture.width + x as usize]
     };
     let (x0, y0) = (s.x.floor(), s.y.floor());
     let (fx, fy) = (s.x - x0, s.y - y0);
     let (x0, y0) = (x0 as i64, y0 as i64);
     let mut out = [0f32; 3];
-    for (dx, dy, w) in [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)] {
+    for (dx, dy, w) in
+        [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+    {
         let p = at(x0 + dx, y0 + dy);
         for c in 0..3 {
             out[c] += w * p[c];
@@ -192,19 +206,40 @@ mod tests {
         let image = image::open(&photo).expect("photo").to_rgb32f();
         let side = 128usize;
         let at = |x: usize, y: usize| image.get_pixel(x as u32, y as u32).0;
-        let sample = Picture { width: side, height: side, rgb: (0..side * side).map(|i| at(i % side, i / side)).collect() };
-        let fit = FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), ColourSpace::Lab, false)
-            .expect("fit image");
+        let sample = Picture {
+            width: side,
+            height: side,
+            rgb: (0..side * side).map(|i| at(i % side, i / side)).collect(),
+        };
+        let fit =
+            FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), ColourSpace::Lab, false)
+                .expect("fit image");
         let path = crate::mesh::test_meshes::bundled("bunny-1k8.obj");
         let mesh = crate::mesh::textured::load_textured(&path).expect("bunny");
         let (lo, hi) = crate::mesh::bounds_of(&mesh.positions);
         let scale = 4.0 * side as f32 / (hi - lo).max_element();
         let measure = |matching: bool| {
             let params = SolerParams { texels_per_unit: scale, matching, ..SolerParams::default() };
-            let m = map_mesh(&mesh.positions, &mesh.triangles, &path, fit.clone(), &params, &crate::progress::Silent)
-                .expect("mapped");
-            let q = seam_quality(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &sample, false, scale, (3000, 1))
-                .expect("measured");
+            let m = map_mesh(
+                &mesh.positions,
+                &mesh.triangles,
+                &path,
+                fit.clone(),
+                &params,
+                &crate::progress::Silent,
+            )
+            .expect("mapped");
+            let q = seam_quality(
+                &mesh.positions,
+                &mesh.triangles,
+                &m.corner_uv,
+                &m.cluster,
+                &sample,
+                false,
+                scale,
+                (3000, 1),
+            )
+            .expect("measured");
             (q, m.report)
         };
         let (matched, report) = measure(true);

@@ -34,7 +34,14 @@ struct Shared {
 }
 
 /// Relaxes the coordinates `uv` (per chart vertex) of cluster `c`.
-pub(super) fn relax(m: &Mapper, c: u32, chart: &Chart, uv: &mut [Vec2], mapping: &Mapping, rng: &mut ChaCha8Rng) {
+pub(super) fn relax(
+    m: &Mapper,
+    c: u32,
+    chart: &Chart,
+    uv: &mut [Vec2],
+    mapping: &Mapping,
+    rng: &mut ChaCha8Rng,
+) {
     let (graph, h) = (m.graph, m.hierarchy);
     let cluster = &h.clusters[c as usize];
     let owner = &h.owner[cluster.level as usize];
@@ -48,7 +55,8 @@ pub(super) fn relax(m: &Mapper, c: u32, chart: &Chart, uv: &mut [Vec2], mapping:
                 continue;
             }
             let (va, vb) = (t[k], t[(k + 1) % 3]);
-            let (Some(a), Some(b), Some(ka), Some(kb)) = (index(va), index(vb), graph.corner_of(g, va), graph.corner_of(g, vb))
+            let (Some(a), Some(b), Some(ka), Some(kb)) =
+                (index(va), index(vb), graph.corner_of(g, va), graph.corner_of(g, vb))
             else {
                 continue;
             };
@@ -109,8 +117,12 @@ pub(super) fn relax(m: &Mapper, c: u32, chart: &Chart, uv: &mut [Vec2], mapping:
         }
         radius *= 0.5;
     }
-    let moves: Vec<(usize, Vec2)> =
-        movers.iter().zip(&original).map(|(&v, &o)| (v, work[v] - o)).filter(|(_, d)| d.length_squared() > 0.0).collect();
+    let moves: Vec<(usize, Vec2)> = movers
+        .iter()
+        .zip(&original)
+        .map(|(&v, &o)| (v, work[v] - o))
+        .filter(|(_, d)| d.length_squared() > 0.0)
+        .collect();
     if moves.is_empty() {
         return;
     }
