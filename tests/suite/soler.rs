@@ -112,7 +112,7 @@ fn a_plane_maps_as_one_undistorted_patch_and_an_obj_is_written_too() {
     let analysis = analyze_gravel(dir.path(), "gravel", "0,0,64,64");
     // A 10×10-quad plane two units wide: with 20 texels per unit it is 40 texels across,
     // and fits in the 64² sample as one patch.
-    let plane = dir.path().join("plane.obj");
+    let plane = dir.path().join("grid.obj");
     let mut text = String::new();
     let n = 10;
     for j in 0..=n {
