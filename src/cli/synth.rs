@@ -25,7 +25,8 @@ enum SearchKind {
 #[derive(clap::Args)]
 #[command(
     after_help = "Examples:\n  btfsynth synth pebbles.analysis/ bunny.obj --texels-across 256 -o bunny.ply\n  \
-btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/"
+btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/\n  \
+btfsynth synth pebbles.analysis/ bunny.obj --method soler2002 -o bunny-uv.ply   # UVs on the mesh as it is"
 )]
 pub struct SynthArgs {
     /// The analysis directory (from `btfsynth analyze`).
@@ -115,6 +116,13 @@ pub struct SynthArgs {
     /// Replace the output if it exists.
     #[arg(long)]
     force: bool,
+    /// How the sample is put on the mesh: vertex (the per-vertex engine, --preset) or
+    /// soler2002 (hierarchical pattern mapping: the mesh as it is, with texture coordinates
+    /// into the sample; --scale or --texels-across size it).
+    #[arg(long, value_enum, default_value_t = super::soler::Method::Vertex)]
+    method: super::soler::Method,
+    #[command(flatten)]
+    soler: super::soler::SolerArgs,
 }
 
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
@@ -140,6 +148,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     let (Some(analysis), Some(output)) = (args.analysis.clone(), args.output.clone()) else {
         return Err(usage("give an ANALYSIS and -o OUT"));
     };
+    if args.method == super::soler::Method::Soler2002 {
+        return soler2002(&args, &analysis, &output, bars);
+    }
     check_target(&output, args.force)?;
     if let Some(report) = &args.report {
         check_target(report, true)?;
@@ -214,6 +225,29 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// `--method soler2002`: the mesh is mapped as it is, so the per-vertex engine's flags do not apply.
+fn soler2002(args: &SynthArgs, analysis: &Path, output: &Path, bars: &Bars) -> Result<()> {
+    let Some(mesh) = &args.mesh else { return Err(usage("--method soler2002 maps a MESH (not --plane)")) };
+    if args.vertices.is_some()
+        || args.recipe.is_some()
+        || args.preset != "appearance"
+        || args.marching_cache.is_some()
+    {
+        return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --marching-cache"));
+    }
+    let common = super::soler::Common {
+        analysis,
+        mesh,
+        output,
+        scale: args.scale,
+        texels_across: args.texels_across,
+        seed: args.seed,
+        report: args.report.as_deref(),
+        force: args.force,
+    };
+    super::soler::run(common, &args.soler, bars)
 }
 
 /// The recipe in `file` (see `--recipe`), checked; any problem is a usage error naming the file.

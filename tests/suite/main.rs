@@ -28,6 +28,7 @@ mod quality;
 mod recipes;
 mod render;
 mod repetition;
+mod soler;
 mod surface;
 mod synth;
 mod tileable;
