@@ -107,7 +107,8 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         (None, across) => {
             let (lo, hi) = crate::mesh::bounds_of(&mesh.positions);
             let side = (hi - lo).max_element();
-            if !(side > 0.0) {
+            // NaN fails too: a mesh without finite extent.
+            if side.is_nan() || side <= 0.0 {
                 return Err(usage(format!(
                     "{}: the mesh has no extent to scale a texture to",
                     common.mesh.display()

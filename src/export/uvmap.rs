@@ -8,7 +8,7 @@
 use super::bake::{bake_blend, Baked, MapLookup};
 use super::layout::{vertex_normals, vertex_tangents, AtlasMesh};
 use super::{to_arrays, write_document, AtlasReport, ExportOptions, ExportReport, Look, TexturedJob};
-use crate::maps::{open_maps, MapKind};
+use crate::maps::{stored::open_maps, MapKind};
 use crate::render::scene::open_surface;
 use crate::render::Material;
 use crate::synth::patches::output::read_uv_map;

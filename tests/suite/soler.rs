@@ -40,14 +40,11 @@ fn check_map(map: &UvMap, mesh: &Path, clusters: bool) {
     }
     let mut at: HashMap<(u32, u32), Vec2> = HashMap::new();
     for (f, t) in map.mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let key = (map.cluster[f], t[k]);
-            let uv = map.corner_uv[f][k];
-            let seen = *at.entry(key).or_insert(uv);
+        for (&vertex, &uv) in t.iter().zip(&map.corner_uv[f]) {
+            let seen = *at.entry((map.cluster[f], vertex)).or_insert(uv);
             assert!(
                 seen.distance(uv) < 1e-3,
-                "vertex {} has two coordinates in cluster {}",
-                t[k],
+                "vertex {vertex} has two coordinates in cluster {}",
                 map.cluster[f]
             );
         }

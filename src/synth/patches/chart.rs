@@ -165,8 +165,7 @@ fn control_polygon(graph: &SurfaceGraph, h: &Hierarchy, c: u32) -> Option<Vec<Ve
     if cluster.is_face() {
         // A face is its own polygon, exactly (even one without area).
         let (ab, ac, bc) = (p[0].distance(p[1]), p[0].distance(p[2]), p[1].distance(p[2]));
-        let x =
-            [Vec2::ZERO, Vec2::new(ab, 0.0), super::mapping::unfold(Vec2::ZERO, Vec2::new(ab, 0.0), ac, bc)];
+        let x = [Vec2::ZERO, Vec2::new(ab, 0.0), unfold(Vec2::ZERO, Vec2::new(ab, 0.0), ac, bc)];
         let mean = (x[0] + x[1] + x[2]) / 3.0;
         return Some(x.iter().map(|&v| v - mean).collect());
     }
@@ -223,7 +222,7 @@ fn control_polygon(graph: &SurfaceGraph, h: &Hierarchy, c: u32) -> Option<Vec<Ve
 fn is_simple_ccw(x: &[DVec2]) -> bool {
     let n = x.len();
     let area: f64 = (0..n).map(|i| x[i].perp_dot(x[(i + 1) % n])).sum();
-    if !(area > 0.0) {
+    if area.is_nan() || area <= 0.0 {
         return false;
     }
     let cross = |a: DVec2, b: DVec2, c: DVec2, d: DVec2| {
@@ -364,6 +363,15 @@ fn barycentric(x: DVec2, a: DVec2, b: DVec2, c: DVec2) -> Option<[f64; 3]> {
     let beta = (x - a).perp_dot(c - a) / d;
     let gamma = (b - a).perp_dot(x - a) / d;
     Some([1.0 - beta - gamma, beta, gamma])
+}
+
+/// The apex of a triangle on the left of `a → b` with sides `la` (to a) and `lb` (to b).
+pub(super) fn unfold(a: Vec2, b: Vec2, la: f32, lb: f32) -> Vec2 {
+    let d = a.distance(b).max(f32::MIN_POSITIVE);
+    let u = (b - a) / d;
+    let along = (la * la - lb * lb + d * d) / (2.0 * d);
+    let height = (la * la - along * along).max(0.0).sqrt();
+    a + along * u + height * u.perp()
 }
 
 #[cfg(test)]

@@ -456,8 +456,8 @@ impl Fitter {
                 }
                 let rotation = &self.rotations[k];
                 let mut product = vec![Complex::default(); spectra[0].len()];
-                for c in 0..channels {
-                    for ((p, i), t) in product.iter_mut().zip(&spectra[c]).zip(&rotation.spectra[c]) {
+                for (spectrum, rotated) in spectra[..channels].iter().zip(&rotation.spectra) {
+                    for ((p, i), t) in product.iter_mut().zip(spectrum).zip(rotated) {
                         *p -= 2.0 * i.conj() * t;
                     }
                 }

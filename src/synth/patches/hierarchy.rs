@@ -356,10 +356,7 @@ fn regularise(graph: &SurfaceGraph, regions: &mut [Vec<u32>], s: &mut Scratch) {
             }
             regions[from].swap_remove(i);
             regions[to].push(f);
-            let keeps = |region: &[u32], s: &mut Scratch| {
-                let ok = disc_border(graph, region, s).is_some();
-                ok
-            };
+            let keeps = |region: &[u32], s: &mut Scratch| disc_border(graph, region, s).is_some();
             let (a, b) = (regions[from].clone(), regions[to].clone());
             if !(keeps(&a, s) && keeps(&b, s)) {
                 regions[to].pop();
@@ -404,8 +401,8 @@ fn disc_border(graph: &SurfaceGraph, faces: &[u32], s: &mut Scratch) -> Option<V
     let mut first = NONE;
     for &f in faces {
         let c = graph.corners[f as usize];
-        for k in 0..3 {
-            let v = c[k] as usize;
+        for &corner in &c {
+            let v = corner as usize;
             if s.vertex_stamp[v] != generation {
                 s.vertex_stamp[v] = generation;
                 s.vertex_count[v] = 0;

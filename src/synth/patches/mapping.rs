@@ -16,11 +16,12 @@
 //! level are always mapped, with their best placement: the finest scale fills what is left
 //! as well as it can.
 
-use super::chart::{Chart, Flattening};
-use super::fit::{Fitter, Mask, Placement, Unplaced};
-use super::graph::{SurfaceGraph, NONE};
-use super::hierarchy::Hierarchy;
-use super::{LevelReport, SolerParams};
+use super::chart::{unfold, Chart};
+use super::fit::{Mask, Placement, Unplaced};
+use super::graph::NONE;
+pub(super) use super::mapper::Mapper;
+pub use super::mapper::Mapping;
+use super::LevelReport;
 use crate::progress::Progress;
 use crate::Result;
 use glam::{Affine2, Mat2, Vec2};
@@ -28,29 +29,8 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap, HashSet, VecDeque};
+use std::collections::{BinaryHeap, HashMap, VecDeque};
 use std::time::Instant;
-
-/// The texture on the graph's faces.
-#[derive(Clone, Debug)]
-pub struct Mapping {
-    /// Per graph face, the cluster that textured it ([`NONE`] until one does).
-    pub mapped_by: Vec<u32>,
-    /// Per graph face, the sample coordinate (texels, centres at integers) of each corner.
-    pub face_uv: Vec<[Vec2; 3]>,
-    /// The connected pieces of the surface (level-0 clusters) where a patch has been placed.
-    started_pieces: HashSet<u32>,
-}
-
-impl Mapping {
-    fn new(faces: usize) -> Mapping {
-        Mapping {
-            mapped_by: vec![NONE; faces],
-            face_uv: vec![[Vec2::ZERO; 3]; faces],
-            started_pieces: HashSet::new(),
-        }
-    }
-}
 
 /// What became of a cluster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,15 +83,6 @@ impl PartialOrd for Key {
     fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
         Some(self.cmp(other))
     }
-}
-
-/// Everything one mapping reads.
-pub(super) struct Mapper<'a> {
-    pub graph: &'a SurfaceGraph,
-    pub hierarchy: &'a Hierarchy,
-    pub flattening: &'a Flattening,
-    pub fitter: &'a Fitter,
-    pub params: &'a SolerParams,
 }
 
 impl Mapper<'_> {
@@ -551,15 +522,6 @@ fn bounds(points: impl Iterator<Item = Vec2>) -> (Vec2, Vec2) {
     points.fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
         (lo.min(p), hi.max(p))
     })
-}
-
-/// The apex of a triangle on the left of `a → b` with sides `la` (to a) and `lb` (to b).
-pub(super) fn unfold(a: Vec2, b: Vec2, la: f32, lb: f32) -> Vec2 {
-    let d = a.distance(b).max(f32::MIN_POSITIVE);
-    let u = (b - a) / d;
-    let along = (la * la - lb * lb + d * d) / (2.0 * d);
-    let height = (la * la - along * along).max(0.0).sqrt();
-    a + along * u + height * u.perp()
 }
 
 /// Calls `pixel(x, y, barycentric)` for every pixel centre of a `w × h` frame inside

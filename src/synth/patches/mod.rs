@@ -34,6 +34,7 @@ pub mod chart;
 pub mod fit;
 pub mod graph;
 pub mod hierarchy;
+pub mod mapper;
 pub mod mapping;
 pub mod output;
 pub mod quality;
@@ -192,7 +193,7 @@ pub fn map_mesh(
     let fitter = Fitter::new(sample, params.rotations)?;
     seconds[2] = started.elapsed().as_secs_f64();
     let started = Instant::now();
-    let mapper = mapping::Mapper {
+    let mapper = mapper::Mapper {
         graph: &graph,
         hierarchy: &hierarchy,
         flattening: &flattening,
@@ -221,7 +222,7 @@ pub fn map_mesh(
 /// shares most of its corners (else in any face around the vertex).
 fn on_file_faces(
     graph: &SurfaceGraph,
-    mapping: &mapping::Mapping,
+    mapping: &mapper::Mapping,
     triangles: &[[u32; 3]],
 ) -> (Vec<[Vec2; 3]>, Vec<u32>) {
     let faces = triangles.len();

@@ -156,14 +156,14 @@ fn obj_bytes(
     let mut faces = String::new();
     for (f, t) in triangles.iter().enumerate() {
         faces.push('f');
-        for k in 0..3 {
-            let uv = to_file_uv(mapping.corner_uv[f][k], sample);
+        for (&vertex, &corner_uv) in t.iter().zip(&mapping.corner_uv[f]) {
+            let uv = to_file_uv(corner_uv, sample);
             let next = index.len() + 1;
-            let vt = *index.entry((t[k], uv.to_array().map(f32::to_bits))).or_insert_with(|| {
+            let vt = *index.entry((vertex, uv.to_array().map(f32::to_bits))).or_insert_with(|| {
                 let _ = writeln!(text, "vt {} {}", uv.x, uv.y);
                 next
             });
-            let _ = write!(faces, " {}/{vt}", t[k] + 1);
+            let _ = write!(faces, " {}/{vt}", vertex + 1);
         }
         faces.push('\n');
     }
@@ -262,7 +262,7 @@ pub fn read_uv_map(path: &Path) -> Result<UvMap> {
     }
     let faces = mesh.triangles.len();
     let (mut level, mut cluster) = (vec![0u8; faces], vec![u32::MAX; faces]);
-    if comments.first().is_some() && path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
+    if !comments.is_empty() && path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         let mut f = 0usize;
         crate::mesh::ply::read::visit_rows(&bytes, path, |element, _, row| {

@@ -8,8 +8,9 @@
 //! pixel takes the texture of the face it falls in. Inside a patch the windows measure the
 //! mapping's distortion (a rigid, undistorted patch scores 0); across a border, its seam.
 
+use super::chart::unfold;
 use super::graph::{SurfaceGraph, NONE};
-use super::mapping::{raster, unfold};
+use super::mapping::raster;
 use crate::eval::picture::{nearest_patch_energy, PATCH_SIDE};
 use crate::eval::Picture;
 use crate::Result;

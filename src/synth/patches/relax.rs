@@ -14,7 +14,7 @@
 
 use super::chart::Chart;
 use super::graph::NONE;
-use super::mapping::{Mapper, Mapping};
+use super::mapper::{Mapper, Mapping};
 use glam::Vec2;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
