@@ -13,76 +13,257 @@ use std::sync::Mutex;
 /// An output directory under construction. Files go into [`StagedDir::path`]; [`StagedDir::commit`]
 /// moves the directory to its final name. Dropping it uncommitted deletes the temporary.
 pub struct StagedDir {
+    staged: Staged,
+}
+
+impl StagedDir {
+    /// Prepares to write `target`. Fails if `target` exists and `overwrite` is false, if it
+    /// is a device or FIFO (a directory cannot replace one), or if the parent directory
+    /// cannot be written.
+    pub fn new(target: &Path, overwrite: bool) -> Result<Self> {
+        let staged = Staged::dir(target, overwrite)?;
+        std::fs::create_dir_all(staged.path()).map_err(|e| Error::io(target, e))?;
+        hold_for_tests();
+        Ok(StagedDir { staged })
+    }
+
+    /// Where the files are written while the output is incomplete.
+    pub fn path(&self) -> &Path {
+        self.staged.path()
+    }
+
+    /// Moves the finished directory into place, replacing an old one only now.
+    pub fn commit(self) -> Result<PathBuf> {
+        self.staged.commit()
+    }
+}
+
+/// An output (a file or a directory) reserved under a temporary sibling name: whoever
+/// writes it creates [`Staged::path`] (a library writer may stage its own temporaries
+/// inside or beside it), and [`Staged::commit`] (or [`commit_all`], for outputs that must
+/// appear together) moves it to its final name as the last step. Dropped uncommitted,
+/// whatever exists at the temporary name is deleted; an interrupted process deletes it too
+/// (see [`remove_staged`]).
+pub struct Staged {
     staging: PathBuf,
     target: PathBuf,
     committed: bool,
 }
 
-impl StagedDir {
-    /// Prepares to write `target`. Fails if `target` exists and `overwrite` is false, or if
-    /// the parent directory cannot be written.
-    pub fn new(target: &Path, overwrite: bool) -> Result<Self> {
-        check_target(target, overwrite)?;
-        let staging = temp_sibling(target, TEMPORARY)?;
-        register(&staging);
-        if let Err(e) = std::fs::create_dir_all(&staging) {
-            unregister(&staging);
-            return Err(Error::io(target, e));
-        }
-        hold_for_tests();
-        Ok(StagedDir { staging, target: target.to_path_buf(), committed: false })
+impl Staged {
+    /// Reserves a temporary name for the file `target` (see [`check_file_target`]).
+    pub fn file(target: &Path, overwrite: bool) -> Result<Self> {
+        check_file_target(target, overwrite)?;
+        Self::reserve(target)
     }
 
-    /// Where the files are written while the output is incomplete.
+    /// Reserves a temporary name for the directory `target` (see [`check_dir_target`]).
+    pub fn dir(target: &Path, overwrite: bool) -> Result<Self> {
+        check_dir_target(target, overwrite)?;
+        Self::reserve(target)
+    }
+
+    fn reserve(target: &Path) -> Result<Self> {
+        let staging = temp_sibling(target, TEMPORARY)?;
+        register(&staging);
+        Ok(Staged { staging, target: target.to_path_buf(), committed: false })
+    }
+
+    /// The temporary name, which does not exist until the caller creates it.
     pub fn path(&self) -> &Path {
         &self.staging
     }
 
-    /// Moves the finished directory into place, replacing an old one only now.
-    pub fn commit(mut self) -> Result<PathBuf> {
-        // Holding the register keeps a signal handler from deleting the staging directory
-        // between the two renames, which would lose both the old and the new output.
-        let mut register = lock_register();
-        let old = if self.target.exists() {
-            let old = temp_sibling(&self.target, REPLACED)?;
-            std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
-            register.push(old.clone());
-            Some(old)
-        } else {
-            None
-        };
-        std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
-        register.retain(|p| *p != self.staging);
-        self.committed = true;
-        drop(register);
-        if let Some(old) = old {
-            // The new output is in place; a leftover old copy is only wasted space.
-            let _ = std::fs::remove_dir_all(&old);
-            unregister(&old);
-        }
-        Ok(self.target.clone())
+    /// The final name.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Moves the finished output into place (replacing an old one only now), or copies a
+    /// file output into the device or FIFO it names.
+    pub fn commit(self) -> Result<PathBuf> {
+        Ok(commit_all(vec![self])?.remove(0))
     }
 }
 
-impl Drop for StagedDir {
+impl Drop for Staged {
     fn drop(&mut self) {
         if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.staging);
+            remove_any(&self.staging);
             unregister(&self.staging);
         }
     }
 }
 
+/// Commits every one of `outputs` as one step: a signal handler waits until all are in
+/// place (or, if one fails, until the rest are discarded). Outputs before a failed one stay
+/// committed.
+pub fn commit_all(mut outputs: Vec<Staged>) -> Result<Vec<PathBuf>> {
+    // Holding the register keeps a signal handler from deleting a staged output between
+    // the two renames of a replacement, which would lose both the old and the new output.
+    let mut register = lock_register();
+    let mut done = Vec::with_capacity(outputs.len());
+    let mut top_level = false;
+    for staged in &mut outputs {
+        commit_locked(staged, &mut register)?;
+        // What a message may name as written: outputs, not files inside a staged one.
+        if !register.iter().any(|s| staged.target.starts_with(s)) {
+            lock_committed().push(staged.target.clone());
+            top_level = true;
+        }
+        done.push(staged.target.clone());
+    }
+    drop(register);
+    if top_level {
+        hold_committed_for_tests();
+    }
+    Ok(done)
+}
+
+fn commit_locked(staged: &mut Staged, register: &mut Vec<PathBuf>) -> Result<()> {
+    let target = staged.target.clone();
+    if let Some(special) = special_kind(&target) {
+        // A device or FIFO is written into, never replaced.
+        let copied = std::fs::File::open(&staged.staging).and_then(|mut from| {
+            let mut into = std::fs::OpenOptions::new().write(true).open(&target)?;
+            std::io::copy(&mut from, &mut into)?;
+            std::io::Write::flush(&mut into)
+        });
+        if let Err(e) = copied {
+            return Err(Error::invalid(format!(
+                "{}: cannot write into this {special}: {e}",
+                target.display()
+            )));
+        }
+        remove_any(&staged.staging);
+    } else {
+        let staging_is_dir = std::fs::symlink_metadata(&staged.staging).is_ok_and(|m| m.is_dir());
+        let existing = std::fs::symlink_metadata(&target).ok();
+        if existing.as_ref().is_some_and(|m| m.is_dir()) && !staging_is_dir {
+            return Err(Error::invalid(format!(
+                "{} is a directory; this output is a file, which never replaces one",
+                target.display()
+            )));
+        }
+        // A file replaces a file (or a link) in one atomic rename; anything else moves the
+        // old output aside first.
+        let old = if existing.is_some() && staging_is_dir {
+            let old = temp_sibling(&target, REPLACED)?;
+            std::fs::rename(&target, &old).map_err(|e| Error::io(&target, e))?;
+            register.push(old.clone());
+            Some(old)
+        } else {
+            None
+        };
+        if let Err(e) = std::fs::rename(&staged.staging, &target) {
+            // Put the old output back: nothing is lost by a failed commit.
+            if let Some(old) = &old {
+                if std::fs::rename(old, &target).is_ok() {
+                    register.retain(|p| p != old);
+                }
+            }
+            return Err(Error::io(&target, e));
+        }
+        if let Some(old) = old {
+            // The new output is in place; a leftover old copy is only wasted space.
+            remove_any(&old);
+            register.retain(|p| *p != old);
+        }
+    }
+    register.retain(|p| *p != staged.staging);
+    staged.committed = true;
+    Ok(())
+}
+
+/// Removes a file, a link or a whole directory; nothing if `path` does not exist.
+fn remove_any(path: &Path) {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => {
+            let _ = std::fs::remove_dir_all(path);
+        }
+        Ok(_) => {
+            let _ = std::fs::remove_file(path);
+        }
+        Err(_) => {}
+    }
+}
+
+/// What a special file at `path` is ("device", "FIFO"), when `path` names a character
+/// device or a FIFO (through links): outputs are written into those, never renamed over.
+fn special_kind(path: &Path) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::metadata(path).ok()?.file_type();
+    if kind.is_char_device() {
+        Some("device")
+    } else if kind.is_fifo() {
+        Some("FIFO")
+    } else {
+        None
+    }
+}
+
+/// Why nothing can be written at `path` whatever `--force` says: a block device or a
+/// socket (a disk must never be overwritten by an output).
+fn unwritable_kind(path: &Path) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::metadata(path).ok()?.file_type();
+    if kind.is_block_device() {
+        Some("block device")
+    } else if kind.is_socket() {
+        Some("socket")
+    } else {
+        None
+    }
+}
+
 /// Fails early, before any long work, if `target` could not be written: it exists and
 /// `overwrite` is false, its parent directory is missing, or nothing can be created there
-/// (a read-only file system, `/proc`, a directory without write permission).
+/// (a read-only file system, `/proc`, a directory without write permission). A character
+/// device or FIFO passes (an output is written into it); a block device or socket never does.
 pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
-    if target.exists() && !overwrite {
+    if let Some(kind) = unwritable_kind(target) {
+        return Err(Error::invalid(format!(
+            "{} is a {kind}; btfsynth writes no output there",
+            target.display()
+        )));
+    }
+    if special_kind(target).is_some() {
+        return Ok(());
+    }
+    if std::fs::symlink_metadata(target).is_ok() && !overwrite {
         return Err(Error::invalid(format!(
             "{} already exists (pass --force to replace it)",
             target.display()
         )));
     }
+    probe_parent(target)
+}
+
+/// [`check_target`] for an output that is one file: a directory in its place is refused
+/// (even with `overwrite`), a device or FIFO is written into.
+pub fn check_file_target(target: &Path, overwrite: bool) -> Result<()> {
+    if std::fs::metadata(target).is_ok_and(|m| m.is_dir()) {
+        return Err(Error::invalid(format!(
+            "{} is a directory; this output is a file (name a file instead)",
+            target.display()
+        )));
+    }
+    check_target(target, overwrite)
+}
+
+/// [`check_target`] for an output that is a directory: a device or FIFO in its place is
+/// refused (a directory cannot be written into one, and it is never replaced).
+pub fn check_dir_target(target: &Path, overwrite: bool) -> Result<()> {
+    if let Some(kind) = special_kind(target) {
+        return Err(Error::invalid(format!(
+            "{} is a {kind}; this output is a directory, which cannot replace it",
+            target.display()
+        )));
+    }
+    check_target(target, overwrite)
+}
+
+fn probe_parent(target: &Path) -> Result<()> {
     let probe = temp_sibling(target, PROBE)?;
     register(&probe);
     let created = std::fs::OpenOptions::new().write(true).create_new(true).open(&probe);
@@ -101,32 +282,122 @@ pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
     }
 }
 
-/// Writes a file atomically: the bytes go to a temporary sibling that is renamed over `path`.
+/// Refuses an output that is one of `inputs`, holds one (replacing it would delete the
+/// input) or lies inside one (writing it would change the input). Paths are compared
+/// resolved, so `./a`, `a/` and a link to `a` are all `a`. `what` names the output in the
+/// message (`-o`, `--report`).
+pub fn check_not_input(what: &str, output: &Path, inputs: &[&Path]) -> Result<()> {
+    for input in inputs {
+        if let Some(why) = overlap(output, input) {
+            return Err(Error::invalid(format!(
+                "{what} {} {why} the input {}; inputs are never replaced: choose another output",
+                output.display(),
+                input.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a second output (`what`, e.g. `--report`) that is, holds or lies inside the
+/// first (`-o`): one would overwrite the other.
+pub fn check_apart(what: &str, second: &Path, first: &Path) -> Result<()> {
+    match overlap(second, first) {
+        Some(why) => Err(Error::invalid(format!(
+            "{what} {} {why} the output {}; give each output its own name",
+            second.display(),
+            first.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// How `a` overlaps `b`: it "is" `b`, "holds" it or "lies inside" it (None: apart, or
+/// unresolvable).
+fn overlap(a: &Path, b: &Path) -> Option<&'static str> {
+    let (a, b) = (resolved(a)?, resolved(b)?);
+    if a == b {
+        Some("is")
+    } else if b.starts_with(&a) {
+        Some("holds")
+    } else if a.starts_with(&b) {
+        Some("lies inside")
+    } else {
+        None
+    }
+}
+
+/// `path` absolute with its links resolved; for a path that does not exist yet, its parent
+/// resolved and its name appended. None if not even the parent can be resolved.
+fn resolved(path: &Path) -> Option<PathBuf> {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return Some(p);
+    }
+    let name = path.file_name()?;
+    let parent = std::fs::canonicalize(parent_of(path)).ok()?;
+    Some(parent.join(name))
+}
+
+/// Writes a file atomically: the bytes go to a temporary sibling that is renamed over `path`
+/// (or copied into it, if `path` is a device or FIFO).
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_with_temp(path, |tmp| std::fs::write(tmp, bytes).map_err(|e| Error::io(path, e)))
 }
 
-/// Runs `write` on a temporary sibling of `path`, then renames it into place. The temporary
+/// Runs `write` on a temporary sibling of `path`, then renames it into place (or copies it
+/// into `path` if that is a device or FIFO: special files are never replaced). The temporary
 /// is removed if `write` fails (or the process is interrupted, see [`remove_staged`]).
 pub fn write_with_temp(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = temp_sibling(path, TEMPORARY)?;
-    register(&tmp);
-    let written = write(&tmp).map(|()| hold_for_tests());
-    let result = written.and_then(|()| {
-        let _register = lock_register();
-        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    if let Some(kind) = unwritable_kind(path) {
+        return Err(Error::invalid(format!(
+            "{} is a {kind}; btfsynth writes no output there",
+            path.display()
+        )));
     }
-    unregister(&tmp);
-    result
+    let staged = Staged::reserve(path)?;
+    write(staged.path())?;
+    hold_for_tests();
+    staged.commit().map(|_| ())
 }
 
+/// Reads a whole input file. A device is refused (`/dev/zero` would never end), and a pipe
+/// or socket is read up to [`MAX_STREAM_BYTES`].
+pub fn read_input(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.file_type();
+    if kind.is_char_device() || kind.is_block_device() {
+        return Err(Error::format(path, "a device, not a file"));
+    }
+    if !(kind.is_fifo() || kind.is_socket()) {
+        return std::fs::read(path).map_err(|e| Error::io(path, e));
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_STREAM_BYTES + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > MAX_STREAM_BYTES {
+        return Err(Error::format(
+            path,
+            format!("a pipe that gives more than {} MiB; read from a file instead", MAX_STREAM_BYTES >> 20),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// [`read_input`] as UTF-8 text.
+pub fn read_input_text(path: &Path) -> Result<String> {
+    String::from_utf8(read_input(path)?).map_err(|_| Error::format(path, "not UTF-8 text"))
+}
+
+/// The most bytes read from a pipe or socket given as an input file.
+pub const MAX_STREAM_BYTES: u64 = 1 << 30;
+
 /// Removes every temporary output of this process that is still registered (staging
-/// directories, temporary files, replaced outputs not yet deleted). Meant for a signal
-/// handler that exits right after: it keeps the register locked, so no commit can start.
-pub fn remove_staged() {
+/// directories, temporary files, replaced outputs not yet deleted), and returns the outputs
+/// that were already committed (so a message can say what is left). Meant for a signal
+/// handler that exits right after: it waits for a commit under way, and keeps the register
+/// locked, so no commit can start.
+pub fn remove_staged() -> Vec<PathBuf> {
     let register = lock_register();
     for path in register.iter() {
         // Workers may still be creating files inside a staging directory. Renamed away
@@ -138,35 +409,35 @@ pub fn remove_staged() {
         for _ in 0..200 {
             let removed =
                 if doomed.is_dir() { std::fs::remove_dir_all(doomed) } else { std::fs::remove_file(doomed) };
-            if removed.is_ok() || !doomed.exists() {
+            if removed.is_ok() || std::fs::symlink_metadata(doomed).is_err() {
                 break;
             }
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
     }
+    let committed = lock_committed().clone();
     // Exiting with the register held keeps other threads from staging anything new.
     std::mem::forget(register);
+    committed
 }
 
 /// `text` with this process's temporary names replaced by the outputs they stand for
-/// (`dir/.frames.tmp-123/frame_0000.exr` → `dir/frames/frame_0000.exr`), so that messages
-/// name what the user asked for.
+/// (`dir/.frames.tmp-123/frame_0000.exr` → `dir/frames/frame_0000.exr`, and a temporary of
+/// a temporary, `..a.tmp-123.tmp-123.ply`, → `a.ply`), so that messages name what the user
+/// asked for.
 pub fn without_temporary_names(text: &str) -> String {
     let pid = std::process::id();
     let mut out = text.to_string();
     for tag in [TEMPORARY, REPLACED, PROBE] {
         let marker = format!(".{tag}-{pid}");
-        let mut rest = out.as_str();
-        let mut cleaned = String::with_capacity(out.len());
-        while let Some(at) = rest.find(&marker) {
-            let head = &rest[..at];
+        // Each pass removes one marker and the dot it added, so nested names unwind.
+        while let Some(at) = out.find(&marker) {
+            let head = &out[..at];
             let start = head.rfind(['/', ' ', '\'', '"', '`']).map_or(0, |k| k + 1);
-            cleaned.push_str(&head[..start]);
-            cleaned.push_str(head[start..].strip_prefix('.').unwrap_or(&head[start..]));
-            rest = &rest[at + marker.len()..];
+            let name = &head[start..];
+            let name = name.strip_prefix('.').unwrap_or(name);
+            out = format!("{}{name}{}", &head[..start], &out[at + marker.len()..]);
         }
-        cleaned.push_str(rest);
-        out = cleaned;
     }
     out
 }
@@ -233,13 +504,33 @@ fn unregister(path: &Path) {
     lock_register().retain(|p| p != path);
 }
 
+/// Outputs this process has committed (top-level ones, not files inside a staged directory).
+static COMMITTED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn lock_committed() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    COMMITTED.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// Tests of the interruption clean-up set this to keep each temporary on disk for that many
 /// milliseconds once it exists, so that a signal reliably arrives while it does.
 #[doc(hidden)]
 pub const HOLD_STAGING_ENV: &str = "BTFSYNTH_TEST_HOLD_STAGING_MS";
 
 fn hold_for_tests() {
-    if let Some(ms) = std::env::var(HOLD_STAGING_ENV).ok().and_then(|v| v.parse::<u64>().ok()) {
+    hold(HOLD_STAGING_ENV);
+}
+
+/// Tests of interruptions after a commit set this to pause that many milliseconds after
+/// each output is committed, so that a signal reliably arrives then.
+#[doc(hidden)]
+pub const HOLD_COMMITTED_ENV: &str = "BTFSYNTH_TEST_HOLD_COMMITTED_MS";
+
+fn hold_committed_for_tests() {
+    hold(HOLD_COMMITTED_ENV);
+}
+
+fn hold(variable: &str) {
+    if let Some(ms) = std::env::var(variable).ok().and_then(|v| v.parse::<u64>().ok()) {
         std::thread::sleep(std::time::Duration::from_millis(ms));
     }
 }

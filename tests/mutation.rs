@@ -418,6 +418,19 @@ fn npy_arrays() {
     torture(".npy (u16)", &valid, variants(&valid, header, VARIANTS, 7), PER_BYTE, load);
 }
 
+#[test]
+fn npy_arrays_with_nan_or_infinity_are_refused() {
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let mut floats: Vec<f32> = (0..12).map(|v| v as f32 * 0.25).collect();
+        floats[7] = bad;
+        let e = npy::decode::<f32>(&npy::encode(&[3, 4], &floats).unwrap()).unwrap_err();
+        assert!(e.contains("value 7 is NaN or infinite"), "{e}");
+        let halves: Vec<half::f16> = floats.iter().map(|&v| half::f16::from_f32(v)).collect();
+        let e = npy::decode::<half::f16>(&npy::encode(&[12], &halves).unwrap()).unwrap_err();
+        assert!(e.contains("value 7 is NaN or infinite"), "{e}");
+    }
+}
+
 /// Runs `f` on a one-thread rayon pool, so that the loaders' parallel work is measured.
 fn on_one_thread<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     thread_local! {
@@ -574,6 +587,22 @@ fn png_images() {
 fn jpeg_images() {
     let valid = encoded(test_image(16, 16).into(), image::ImageFormat::Jpeg);
     torture("JPEG", &valid, variants(&valid, 700, VARIANTS, 13), PER_IMAGE_BYTE, load_image("f.jpg"));
+}
+
+#[test]
+fn every_truncation_of_a_jpeg_is_refused() {
+    let valid = encoded(test_image(24, 16).into(), image::ImageFormat::Jpeg);
+    let load = load_image("f.jpg");
+    assert!(load(&valid).is_ok());
+    // Decoders paint missing rows grey without an error; the loader must not.
+    for keep in 0..valid.len() {
+        let e = load(&valid[..keep]).expect_err(&format!("{keep} of {} bytes", valid.len()));
+        assert_eq!(e.lines().count(), 1, "{e}");
+    }
+    // Bytes after the end-of-image marker are no harm (some cameras add them).
+    let mut trailing = valid.clone();
+    trailing.extend_from_slice(b"\0\0trailer");
+    assert!(load(&trailing).is_ok());
 }
 
 #[test]

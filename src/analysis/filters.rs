@@ -33,6 +33,10 @@ use std::path::Path;
 /// to copy and edit.
 pub const LM48_TOML: &str = include_str!("../../filters/lm48.toml");
 
+/// Most filters in a bank: each is a response channel of every image filtered, so a
+/// bank of thousands would take gigabytes.
+pub const MAX_FILTERS: usize = 256;
+
 /// Largest kernel accepted from a file: a typo such as `support = 4900` would otherwise
 /// make every FFT in the analysis enormous.
 pub const MAX_SUPPORT: usize = 513;
@@ -207,7 +211,7 @@ impl FilterBank {
 
     /// Reads a bank from a TOML file (see `filters/lm48.toml` for the format).
     pub fn from_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::fsutil::read_input_text(path)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -215,6 +219,9 @@ impl FilterBank {
     pub fn from_specs(name: impl Into<String>, specs: Vec<FilterSpec>) -> Result<Self, String> {
         if specs.is_empty() {
             return Err("the bank has no filters; add at least one entry to `filters`".into());
+        }
+        if specs.len() > MAX_FILTERS {
+            return Err(format!("{} filters; a bank holds at most {MAX_FILTERS}", specs.len()));
         }
         let filters = specs
             .into_iter()

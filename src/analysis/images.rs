@@ -54,6 +54,8 @@ impl SampleImages {
         if n == 0 || directions.shape != [n, 4] {
             return Err(Error::format(dir.join("directions.npy"), format!("expected shape [{n}, 4]")));
         }
+        crate::btf::directions::pairs_from_rows(&directions.data)
+            .map_err(|m| Error::format(dir.join("directions.npy"), m))?;
         let directions = directions.data.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
         Ok(SampleImages { width: w, height: h, pixels: images.data, directions })
     }

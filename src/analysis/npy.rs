@@ -13,12 +13,23 @@ pub trait Element: Copy + Default {
     const DESCR: &'static str;
     fn put(self, out: &mut Vec<u8>);
     fn get(bytes: &[u8]) -> Self;
+    /// False for NaN and ±∞ (never for integers): no array btfsynth stores holds them, so
+    /// a file that does is damaged.
+    fn is_finite(self) -> bool {
+        true
+    }
 }
 
 macro_rules! element {
     ($t:ty, $descr:literal) => {
+        element!($t, $descr, |_v: $t| true);
+    };
+    ($t:ty, $descr:literal, $finite:expr) => {
         impl Element for $t {
             const DESCR: &'static str = $descr;
+            fn is_finite(self) -> bool {
+                ($finite)(self)
+            }
             fn put(self, out: &mut Vec<u8>) {
                 out.extend_from_slice(&self.to_le_bytes());
             }
@@ -33,8 +44,8 @@ macro_rules! element {
 
 element!(u16, "<u2");
 element!(u32, "<u4");
-element!(f32, "<f4");
-element!(f16, "<f2");
+element!(f32, "<f4", f32::is_finite);
+element!(f16, "<f2", f16::is_finite);
 
 /// An n-dimensional array read from a `.npy` file.
 #[derive(Clone, Debug, PartialEq)]
@@ -76,7 +87,7 @@ pub fn write<T: Element>(path: &Path, shape: &[usize], data: &[T]) -> Result<()>
 
 /// Reads an array whose dtype must be `T`'s.
 pub fn read<T: Element>(path: &Path) -> Result<NpyArray<T>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::fsutil::read_input(path)?;
     decode(&bytes).map_err(|m| Error::format(path, m))
 }
 
@@ -112,7 +123,12 @@ pub fn decode<T: Element>(bytes: &[u8]) -> Result<NpyArray<T>, String> {
         let expected = expected.map_or("more than fits in memory".to_string(), |n| n.to_string());
         return Err(format!("{} data bytes for shape {shape:?}, expected {expected}", body.len()));
     }
-    Ok(NpyArray { shape, data: body.chunks_exact(size).map(T::get).collect() })
+    let data: Vec<T> = body.chunks_exact(size).map(T::get).collect();
+    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+        let bad = data.iter().filter(|v| !v.is_finite()).count();
+        return Err(format!("value {i} is NaN or infinite ({bad} of {} values are)", data.len()));
+    }
+    Ok(NpyArray { shape, data })
 }
 
 fn quoted_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {

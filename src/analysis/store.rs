@@ -41,10 +41,6 @@ pub struct Manifest {
     pub height: usize,
     pub k: usize,
     pub levels: Vec<LevelInfo>,
-    /// Seconds per stage: selection, filtering, kmeans, gamma, knn, total.
-    pub timings_s: serde_json::Value,
-    /// Peak resident memory of the process, if the platform reports it.
-    pub peak_memory_bytes: Option<u64>,
     /// Material maps stored beside the sample (`analyze --maps`; see [`crate::maps`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub maps: Vec<crate::maps::MapInfo>,
@@ -206,7 +202,6 @@ fn manifest(
     levels: Vec<LevelInfo>,
 ) -> Manifest {
     let p = &analysis.params;
-    let t = &analysis.timings;
     let filters: Vec<serde_json::Value> = p
         .filters
         .filters()
@@ -238,20 +233,108 @@ fn manifest(
         height: btf.height(),
         k: p.k,
         levels,
-        timings_s: serde_json::json!({
+        maps: Vec::new(),
+    }
+}
+
+/// What an analysis took: seconds per stage and the peak memory. Not part of
+/// `analysis.json`, which holds only what the same inputs always give (`analyze --report`
+/// writes this).
+pub fn timings_json(analysis: &Analysis) -> serde_json::Value {
+    let t = &analysis.timings;
+    serde_json::json!({
+        "timings_s": {
             "selection": t.selection.as_secs_f64(), "filtering": t.filtering.as_secs_f64(),
             "kmeans": t.kmeans.as_secs_f64(), "gamma": t.gamma.as_secs_f64(),
             "knn": t.knn.as_secs_f64(), "total": t.total.as_secs_f64(),
-        }),
-        peak_memory_bytes: peak_memory_bytes(),
-        maps: Vec::new(),
+        },
+        "peak_memory_bytes": peak_memory_bytes(),
+    })
+}
+
+/// Checks the arrays of the first `levels` levels against `manifest` (shapes, label and
+/// list ranges), naming the file at fault, so that a damaged array is reported as itself.
+pub fn verify_levels(dir: &Path, manifest: &Manifest, levels: usize) -> Result<()> {
+    for info in manifest.levels.iter().take(levels) {
+        let (w, h, t) = (info.width, info.height, info.textons + 1);
+        let path = dir.join(&info.files.textons);
+        let labels: npy::NpyArray<u16> = npy::read(&path)?;
+        if labels.shape != [h, w] {
+            return Err(Error::format(
+                &path,
+                format!("shape {:?}, expected [{h}, {w}] (analysis.json)", labels.shape),
+            ));
+        }
+        if labels.data.iter().any(|&l| l as usize >= t) {
+            return Err(Error::format(
+                &path,
+                format!("a texton label is {} or more (analysis.json: {} textons)", t, info.textons),
+            ));
+        }
+        drop(labels);
+        let path = dir.join(&info.files.gamma);
+        let gamma: npy::NpyArray<f32> = npy::read(&path)?;
+        if gamma.shape != [t, t] {
+            return Err(Error::format(
+                &path,
+                format!("shape {:?}, expected [{t}, {t}] (analysis.json)", gamma.shape),
+            ));
+        }
+        let path = dir.join(&info.files.embedding);
+        let embedding: npy::NpyArray<f32> = npy::read(&path)?;
+        if embedding.shape.len() != 2 || embedding.shape[0] != t {
+            return Err(Error::format(
+                &path,
+                format!("shape {:?}, expected [{t}, d] (analysis.json)", embedding.shape),
+            ));
+        }
+        let lists = std::iter::once(&info.files.knn).chain(info.files.knn_two_level.as_ref());
+        let mut k = None;
+        for name in lists {
+            let path = dir.join(name);
+            let knn: npy::NpyArray<u32> = npy::read(&path)?;
+            if knn.shape.len() != 3 || knn.shape[..2] != [h, w] || knn.shape[2] == 0 {
+                return Err(Error::format(
+                    &path,
+                    format!("shape {:?}, expected [{h}, {w}, k] (analysis.json)", knn.shape),
+                ));
+            }
+            if *k.get_or_insert(knn.shape[2]) != knn.shape[2] {
+                return Err(Error::format(
+                    &path,
+                    format!(
+                        "lists of {} entries, but {} has {}",
+                        knn.shape[2],
+                        info.files.knn,
+                        k.unwrap_or(0)
+                    ),
+                ));
+            }
+            if knn.data.iter().any(|&p| p as usize >= w * h) {
+                return Err(Error::format(
+                    &path,
+                    format!("a list entry is {} or more, beyond the {w}x{h} texels", w * h),
+                ));
+            }
+        }
+        if let Some(name) = &info.files.appearance {
+            let path = dir.join(name);
+            let a: npy::NpyArray<f32> = npy::read(&path)?;
+            if a.shape.len() != 3 || a.shape[..2] != [h, w] || a.shape[2] == 0 {
+                return Err(Error::format(
+                    &path,
+                    format!("shape {:?}, expected [{h}, {w}, d] (analysis.json)", a.shape),
+                ));
+            }
+        }
     }
+    Ok(())
 }
 
 /// Reads `analysis.json` of an analysis directory.
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     let path = dir.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::fsutil::read_input_text(&path)?;
     let manifest: Manifest = serde_json::from_str(&text)
         .map_err(|e| Error::format(&path, format!("invalid analysis manifest: {e}")))?;
     if manifest.format != "btfsynth-analysis" {

@@ -48,6 +48,7 @@ impl ZipStack {
     /// the size (and check `crop` against it).
     pub fn open(path: &Path, crop: Option<Crop>) -> Result<Self> {
         let mut archive = open_archive(path)?;
+        check_unique_names(path, &archive)?;
         let mut members: Vec<(usize, String)> = (0..archive.len())
             .filter_map(|i| archive.name_for_index(i).map(|n| (i, n.to_string())))
             .filter(|(_, name)| is_image_member(name))
@@ -141,6 +142,38 @@ fn open_archive(path: &Path) -> Result<ZipArchive<File>> {
     ZipArchive::new(file).map_err(|e| Error::format(path, format!("zip directory: {e}")))
 }
 
+/// Refuses an archive whose central directory lists one name twice: the zip reader keeps
+/// one member per name, so the other image would vanish without a word.
+fn check_unique_names(path: &Path, archive: &ZipArchive<File>) -> Result<()> {
+    use std::io::{BufReader, Seek, SeekFrom};
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = BufReader::new(file);
+    reader.seek(SeekFrom::Start(archive.central_directory_start())).map_err(|e| Error::io(path, e))?;
+    let mut seen = std::collections::HashSet::with_capacity(archive.len());
+    let mut header = [0u8; 46];
+    // Every header is at least 46 bytes, so the walk ends within the file.
+    while reader.read_exact(&mut header).is_ok() && header[..4] == *b"PK\x01\x02" {
+        let field = |at: usize| usize::from(u16::from_le_bytes([header[at], header[at + 1]]));
+        let (name_len, extra_len, comment_len) = (field(28), field(30), field(32));
+        let mut name = vec![0u8; name_len];
+        if reader.read_exact(&mut name).is_err() {
+            break;
+        }
+        let name = String::from_utf8_lossy(&name).into_owned();
+        if seen.contains(&name) {
+            return Err(Error::format(
+                path,
+                format!("the archive holds two members named '{name}'; which image is meant is unclear"),
+            ));
+        }
+        seen.insert(name);
+        if reader.seek_relative((extra_len + comment_len) as i64).is_err() {
+            break;
+        }
+    }
+    Ok(())
+}
+
 /// An error's message without the path it names (a member name is named by the caller).
 fn message_of(e: Error) -> String {
     match e {
@@ -197,6 +230,9 @@ pub fn decode_image_bytes(bytes: &[u8], name: &str) -> Result<RgbImage, String> 
         Some("exr") => image::ImageFormat::OpenExr,
         _ => return Err("not a JPEG, PNG, EXR or HDR image".into()),
     };
+    if format == image::ImageFormat::Jpeg {
+        crate::btf::image_io::check_jpeg_complete(bytes)?;
+    }
     let decoded = decode_with_limits(bytes, format)?;
     Ok(decoded_to_linear(decoded, format == image::ImageFormat::OpenExr))
 }

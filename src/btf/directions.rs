@@ -83,6 +83,23 @@ impl fmt::Display for DirectionPair {
     }
 }
 
+/// Direction pairs stored as rows of θ_light, φ_light, θ_view, φ_view in degrees (an
+/// analysis' `directions.npy`), each checked as [`Direction::new`] does; the message names
+/// the first bad row.
+pub fn pairs_from_rows(rows: &[f32]) -> std::result::Result<Vec<DirectionPair>, String> {
+    if rows.len() % 4 != 0 {
+        return Err(format!("{} values are not rows of four angles", rows.len()));
+    }
+    rows.chunks_exact(4)
+        .enumerate()
+        .map(|(i, r)| {
+            let light = Direction::new(r[0], r[1]).map_err(|e| format!("row {i}, light: {e}"))?;
+            let view = Direction::new(r[2], r[3]).map_err(|e| format!("row {i}, view: {e}"))?;
+            Ok(DirectionPair { light, view })
+        })
+        .collect()
+}
+
 /// Indices of the first two pairs that name the same directions, if any.
 pub fn first_duplicate(pairs: &[DirectionPair]) -> Option<(usize, usize)> {
     let mut seen = HashMap::with_capacity(pairs.len());

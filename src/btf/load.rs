@@ -90,7 +90,7 @@ fn discover(path: &Path) -> Result<Vec<Entry>> {
 }
 
 fn manifest_entries(path: &Path) -> Result<Vec<Entry>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::fsutil::read_input_text(path)?;
     let manifest: Manifest =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("invalid manifest: {e}")))?;
     if manifest.images.is_empty() {

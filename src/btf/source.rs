@@ -91,7 +91,7 @@ pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Re
 }
 
 /// `MemAvailable` from /proc/meminfo, in bytes.
-fn available_memory() -> Option<u64> {
+pub(crate) fn available_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

@@ -5,7 +5,7 @@ use crate::btf::colour::ColourModel;
 use crate::btf::convert::{open_stack, rotations_of, to_btf, ToBtfOptions};
 use crate::btf::ubo2014::Scalar;
 use crate::btf::{write_images, Crop, ImageFormat};
-use crate::fsutil::check_target;
+use crate::fsutil::{check_not_input, Staged};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,8 +28,8 @@ pub struct ConvertArgs {
     /// Image format of a folder output.
     #[arg(long, value_enum, default_value_t = ImageFormat::Exr)]
     format: ImageFormat,
-    /// Components kept per colour channel in a .btf (more = closer, larger).
-    #[arg(long, default_value_t = 32, value_name = "K")]
+    /// Components kept per colour channel in a .btf, 1 to 1024 (more = closer, larger).
+    #[arg(long, default_value_t = 32, value_name = "K", value_parser = super::in_range(1, 1024))]
     components: usize,
     /// Colour model of a .btf: 0 (RGB: the error is what the discarded singular values
     /// predict) or 11 (log-Y, U/Y, V/Y, as the UBO2014 files; suits measured data without
@@ -80,11 +80,18 @@ enum Precision {
 }
 
 pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
-    check_target(&args.output, args.force)?;
     let target = args.to.unwrap_or(match has_btf_extension(&args.output) {
         true => Target::Btf,
         false => Target::Folder,
     });
+    let stack_dir = args.input.parent().filter(|_| args.input.extension().is_some_and(|e| e == "json"));
+    let inputs: Vec<&Path> = [Some(args.input.as_path()), stack_dir].into_iter().flatten().collect();
+    check_not_input("-o", &args.output, &inputs)?;
+    // The output is complete, and checked, before it replaces anything: the last step.
+    let staged = match target {
+        Target::Folder => Staged::dir(&args.output, args.force)?,
+        Target::Btf => Staged::file(&args.output, args.force)?,
+    };
     let started = Instant::now();
     let stack = open_stack(&args.input, args.crop, bars)?;
     match target {
@@ -93,18 +100,17 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
                 "converted_from": args.input.display().to_string(),
                 "crop": args.crop.map(|c| [c.x, c.y, c.width, c.height]),
             });
-            let written =
-                write_images(stack.as_ref(), &args.output, args.format, Some(source), args.force, bars)?;
+            write_images(stack.as_ref(), staged.path(), args.format, Some(source), false, bars)?;
+            let (images, width, height) = (stack.pairs().len(), stack.width(), stack.height());
+            let written = staged.commit()?;
             eprintln!(
-                "wrote {} images of {}x{} to {} in {:.1} s",
-                stack.pairs().len(),
-                stack.width(),
-                stack.height(),
+                "wrote {images} images of {width}x{height} to {} in {:.1} s",
                 written.display(),
                 started.elapsed().as_secs_f64()
             );
         }
         Target::Btf => {
+            check_complete(&args.input, stack.pairs())?;
             let model = match args.colour_model {
                 ModelArg::LogYuv => ColourModel::LogYUvOverY,
                 ModelArg::Rgb => ColourModel::Rgb,
@@ -122,10 +128,12 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
             };
             let decoded = stack.decode_all(bars)?;
             drop(stack);
-            let r = to_btf(&decoded, &args.output, &options, bars)?;
+            // Written and decoded back to measure it under the temporary name.
+            let r = to_btf(&decoded, staged.path(), &options, bars)?;
+            let written = staged.commit()?;
             eprintln!(
                 "wrote {} ({} views × {} lights, {}x{}, {:?} components, colour model {}) in {:.1} s",
-                args.output.display(),
+                written.display(),
                 r.views,
                 r.lights,
                 r.width,
@@ -148,6 +156,27 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
                 model.name()
             );
         }
+    }
+    Ok(())
+}
+
+/// A DFMF file holds every view under every light: refuses a stack that lacks a pair
+/// before anything is decoded.
+fn check_complete(input: &Path, pairs: &[crate::btf::DirectionPair]) -> Result<()> {
+    use crate::btf::directions::distinct;
+    let views = distinct(pairs.iter().map(|p| p.view)).len();
+    let lights = distinct(pairs.iter().map(|p| p.light)).len();
+    if views * lights != pairs.len() {
+        return Err(crate::Error::format(
+            input,
+            format!(
+                "a DFMF file needs every view × light pair: this stack has {} images, but its {views} views \
+                 × {lights} lights make {}",
+                pairs.len(),
+                views * lights
+            ),
+        )
+        .into());
     }
     Ok(())
 }

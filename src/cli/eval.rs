@@ -66,9 +66,9 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         );
     };
     if args.json {
-        println!("{}", serde_json::to_string(&evaluation)?);
+        super::print(serde_json::to_string(&evaluation)?)?;
     } else {
-        print_table(&args, &evaluation);
+        super::print(table(&args, &evaluation))?;
     }
     Ok(())
 }
@@ -94,8 +94,11 @@ fn is_picture(path: &std::path::Path) -> bool {
     path.is_file() && matches!(ext.as_deref(), Some("png" | "jpg" | "jpeg"))
 }
 
-fn print_table(args: &EvalArgs, e: &Evaluation) {
-    println!(
+fn table(args: &EvalArgs, e: &Evaluation) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
         "{}: {} of {} vertices, against {}",
         args.result.display(),
         e.kind,
@@ -104,29 +107,32 @@ fn print_table(args: &EvalArgs, e: &Evaluation) {
     );
     for p in &e.probes {
         let q = &p.quality;
-        println!(
+        let _ = writeln!(out,
             "  {:<10} (view {:.0},{:.0} light {:.0},{:.0}): patch energy {:.5} (coarse {:.5}), colour chi2 {:.4}, contrast {:.3}",
             p.probe.name, p.probe.view[0], p.probe.view[1], p.probe.light[0], p.probe.light[1],
             q.patch_energy, q.patch_energy_coarse, q.colour_chi2, q.contrast
         );
         let r = &q.repetition;
         if r.repetition.is_finite() {
-            println!(
+            let _ = writeln!(
+                out,
                 "    repetition {:.3} (strongest at {},{} px), unused sample {:.3}, use spread {:.2}",
                 r.repetition, r.repeat_offset[0], r.repeat_offset[1], r.unused, r.use_spread
             );
         }
         if let Some(seam) = p.wrap_seam_energy {
-            println!("    across the wrap edge (tileable output): patch energy {seam:.5}");
+            let _ = writeln!(out, "    across the wrap edge (tileable output): patch energy {seam:.5}");
         }
     }
     if let Some(c) = &e.coords {
-        println!(
+        let _ = writeln!(
+            out,
             "  coordinates: collapse {:.4}, smear {:.4}, copy {:.3}, coherence {:.1}",
             c.collapse, c.smear, c.copy, c.coherence
         );
     }
     if let Some(t) = &e.textons {
-        println!("  textons: chi2 {:.4}, energy {:.4}", t.chi2, t.energy);
+        let _ = writeln!(out, "  textons: chi2 {:.4}, energy {:.4}", t.chi2, t.energy);
     }
+    out.trim_end().to_string()
 }

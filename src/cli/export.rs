@@ -82,6 +82,12 @@ fn parse_light(s: &str) -> Result<Direction, String> {
 }
 
 pub fn run(args: ExportArgs, bars: &Bars) -> Result<()> {
+    let inputs: Vec<&std::path::Path> =
+        [Some(args.surface.as_path()), args.mesh.as_deref(), args.analysis.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+    crate::fsutil::check_not_input("-o", &args.output, &inputs)?;
     let options = ExportOptions {
         mesh: args.mesh,
         analysis: args.analysis,
@@ -124,7 +130,7 @@ pub fn run(args: ExportArgs, bars: &Bars) -> Result<()> {
         read + layout + bake + write
     );
     for file in &report.files {
-        println!("{}", file.display());
+        super::print(file.display())?;
     }
     Ok(())
 }

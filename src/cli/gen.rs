@@ -4,7 +4,7 @@ use super::progress::Bars;
 use super::usage;
 use crate::btf::gen::{generate, GenParams, MaterialKind};
 use crate::btf::{write_stack, DirectionSet, ImageFormat};
-use crate::fsutil::check_target;
+use crate::fsutil::check_dir_target;
 use anyhow::Result;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -51,9 +51,9 @@ fn parse_directions(s: &str) -> Result<DirectionSet, String> {
 
 pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {
     if args.list {
-        for (kind, about) in MaterialKind::ALL {
-            println!("{:<8} {about}", kind.name());
-        }
+        let lines: Vec<String> =
+            MaterialKind::ALL.iter().map(|(kind, about)| format!("{:<8} {about}", kind.name())).collect();
+        super::print(lines.join("\n"))?;
         return Ok(());
     }
     let Some(kind) = args.kind else {
@@ -67,7 +67,7 @@ pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {
         samples_per_pixel: args.spp,
     };
     params.validate().map_err(usage)?;
-    check_target(&output, args.force)?;
+    check_dir_target(&output, args.force)?;
     let started = Instant::now();
     let stack = generate(kind, &params, bars)?;
     let source = serde_json::json!({

@@ -6,6 +6,14 @@ use crate::btf::{load, Btf, Crop, Direction, LoadOptions};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 
+/// `writeln!` into a `String` (which cannot fail).
+macro_rules! say {
+    ($out:expr, $($arg:tt)*) => {{
+        use std::fmt::Write as _;
+        let _ = writeln!($out, $($arg)*);
+    }};
+}
+
 #[derive(clap::Args)]
 pub struct InfoArgs {
     /// A BTF stack (a directory with btf.json or Bonn/UTIA-named images, a btf.json, one
@@ -25,32 +33,32 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
     if args.path.join(store::MANIFEST).is_file() {
         let manifest = store::read_manifest(&args.path)?;
         if args.json {
-            println!("{}", analysis_json(&manifest));
+            super::print(analysis_json(&manifest))?;
         } else {
-            print_analysis(&args.path, &manifest);
+            super::print(describe_analysis(&args.path, &manifest))?;
         }
         return Ok(());
     }
     if let Some(surface) = surface_header(&args.path)? {
         if args.json {
-            println!("{surface}");
+            super::print(surface)?;
         } else {
-            println!(
+            super::print(format_args!(
                 "{}: surface texton map of {} vertices, {} faces, from the analysis {}",
                 args.path.display(),
                 surface["vertices"],
                 surface["faces"],
                 surface["analysis"].as_str().unwrap_or("")
-            );
+            ))?;
         }
         return Ok(());
     }
     if crate::btf::ubo2014::is_bonn_file(&args.path) && args.crop.is_none() {
         let file = crate::btf::ubo2014::BonnBtf::open(&args.path)?;
         if args.json {
-            println!("{}", file.describe());
+            super::print(file.describe())?;
         } else {
-            print_bonn_file(&file);
+            super::print(describe_bonn_file(&file))?;
         }
         return Ok(());
     }
@@ -58,24 +66,24 @@ pub fn run(args: InfoArgs, bars: &Bars) -> Result<()> {
         let mesh = crate::mesh::load(&args.path)?;
         let summary = crate::mesh::topology::summary(&mesh);
         if args.json {
-            println!(
-                "{}",
-                serde_json::json!({
-                    "kind": "mesh", "path": args.path.display().to_string(), "vertices": summary.vertices,
-                    "faces": summary.faces, "edges": summary.edges, "boundary_edges": summary.boundary_edges,
-                    "components": summary.components, "euler_characteristic": summary.euler_characteristic,
-                })
-            );
+            super::print(serde_json::json!({
+                "kind": "mesh", "path": args.path.display().to_string(), "vertices": summary.vertices,
+                "faces": summary.faces, "edges": summary.edges, "boundary_edges": summary.boundary_edges,
+                "components": summary.components, "euler_characteristic": summary.euler_characteristic,
+            }))?;
         } else {
-            println!("{}: triangle mesh (after welding and validation)\n  {summary}", args.path.display());
+            super::print(format_args!(
+                "{}: triangle mesh (after welding and validation)\n  {summary}",
+                args.path.display()
+            ))?;
         }
         return Ok(());
     }
     let stack = load(&args.path, &LoadOptions { crop: args.crop }, bars)?;
     if args.json {
-        println!("{}", stack_json(&args.path, &stack));
+        super::print(stack_json(&args.path, &stack))?;
     } else {
-        print_stack(&args.path, &stack);
+        super::print(describe_stack(&args.path, &stack))?;
     }
     Ok(())
 }
@@ -100,7 +108,8 @@ pub fn stack_json(path: &Path, stack: &Btf) -> serde_json::Value {
     })
 }
 
-fn print_stack(path: &Path, stack: &Btf) {
+fn describe_stack(path: &Path, stack: &Btf) -> String {
+    let mut out = String::new();
     let (views, lights) = (stack.views(), stack.lights());
     let complete = if views.len() * lights.len() == stack.len() {
         "every view × light pair"
@@ -108,26 +117,30 @@ fn print_stack(path: &Path, stack: &Btf) {
         "a subset of view × light pairs"
     };
     let mean = mean_rgb(stack);
-    println!("{}: BTF stack", path.display());
-    println!("  size    {} x {} pixels", stack.width(), stack.height());
-    println!("  images  {} ({complete})", stack.len());
-    println!("  views   {} distinct, θ up to {}°", views.len(), max_theta(&views));
-    println!("  lights  {} distinct, θ up to {}°", lights.len(), max_theta(&lights));
-    println!("  mean    linear RGB ({:.3}, {:.3}, {:.3})", mean[0], mean[1], mean[2]);
-    println!("  memory  {:.1} MiB as f16", std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64);
+    say!(out, "{}: BTF stack", path.display());
+    say!(out, "  size    {} x {} pixels", stack.width(), stack.height());
+    say!(out, "  images  {} ({complete})", stack.len());
+    say!(out, "  views   {} distinct, θ up to {}°", views.len(), max_theta(&views));
+    say!(out, "  lights  {} distinct, θ up to {}°", lights.len(), max_theta(&lights));
+    say!(out, "  mean    linear RGB ({:.3}, {:.3}, {:.3})", mean[0], mean[1], mean[2]);
+    say!(out, "  memory  {:.1} MiB as f16", std::mem::size_of_val(stack.pixels()) as f64 / (1 << 20) as f64);
+    out.trim_end().to_string()
 }
 
 /// A Bonn `.btf` file from its header alone (nothing is decoded).
-fn print_bonn_file(file: &crate::btf::ubo2014::BonnBtf) {
+fn describe_bonn_file(file: &crate::btf::ubo2014::BonnBtf) -> String {
+    let mut out = String::new();
     let d = file.describe();
     let (views, lights) = file.views_and_lights();
-    println!(
+    say!(
+        out,
         "{}: Bonn {} BTF file ({})",
         file.path().display(),
         d["format"].as_str().unwrap_or(""),
         file.signature()
     );
-    println!(
+    say!(
+        out,
         "  size    {} x {} pixels, {} images ({views} views × {lights} lights)",
         file.width(),
         file.height(),
@@ -135,27 +148,35 @@ fn print_bonn_file(file: &crate::btf::ubo2014::BonnBtf) {
     );
     if let Some(components) = d["components"].as_array() {
         let k: Vec<String> = components.iter().map(|c| c.to_string()).collect();
-        println!(
+        say!(
+            out,
             "  factors {} components per channel, {} scalars",
             k.join(", "),
             d["scalar"].as_str().unwrap_or("")
         );
-        println!(
+        say!(
+            out,
             "  colour  model {} ({})",
             d["colour_model"]["id"],
             d["colour_model"]["name"].as_str().unwrap_or("")
         );
     }
     let meta = file.meta();
-    println!(
+    say!(
+        out,
         "  header  version {}, setup {:?}, sensor {:?}, light {:?}",
-        meta.version, meta.measurement_setup, meta.image_sensor, meta.light_source
+        meta.version,
+        meta.measurement_setup,
+        meta.image_sensor,
+        meta.light_source
     );
-    println!(
+    say!(
+        out,
         "  file    {:.1} MiB; decoded whole it would take {:.1} MiB as f16",
         d["file_bytes"].as_f64().unwrap_or(0.0) / (1u64 << 20) as f64,
         (file.pairs().len() * file.width() * file.height() * 6) as f64 / (1u64 << 20) as f64
     );
+    out.trim_end().to_string()
 }
 
 fn max_theta(dirs: &[Direction]) -> f32 {
@@ -193,9 +214,11 @@ pub fn analysis_json(m: &Manifest) -> serde_json::Value {
     })
 }
 
-fn print_analysis(path: &Path, m: &Manifest) {
-    println!("{}: texton analysis of {}", path.display(), m.source.path);
-    println!(
+fn describe_analysis(path: &Path, m: &Manifest) -> String {
+    let mut out = String::new();
+    say!(out, "{}: texton analysis of {}", path.display(), m.source.path);
+    say!(
+        out,
         "  sample  {} x {} pixels, {} images, {} selected",
         m.width,
         m.height,
@@ -203,7 +226,8 @@ fn print_analysis(path: &Path, m: &Manifest) {
         m.selected.len()
     );
     for (i, l) in m.levels.iter().enumerate() {
-        println!(
+        say!(
+            out,
             "  level {i} {} x {}: {} textons, embedding d = {}, basis {} images ({:.2}% of variance)",
             l.width,
             l.height,
@@ -213,13 +237,15 @@ fn print_analysis(path: &Path, m: &Manifest) {
             100.0 * l.basis_energy
         );
     }
-    println!(
+    say!(
+        out,
         "  kNN     k = {}, {}x{} neighbourhoods{}",
         m.k,
         m.params.neighborhood,
         m.params.neighborhood,
         if m.params.tileable { ", tileable" } else { "" }
     );
+    out.trim_end().to_string()
 }
 
 fn is_mesh_path(path: &Path) -> bool {

@@ -36,8 +36,8 @@ pub struct Cli {
     /// More log output (-v: info, -vv: debug); RUST_LOG overrides.
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     verbose: u8,
-    /// Worker threads, at least 1 (default: one per core).
-    #[arg(long, global = true, value_name = "N", value_parser = at_least(1))]
+    /// Worker threads, 1 to 256 (default: one per core).
+    #[arg(long, global = true, value_name = "N", value_parser = in_range(1, MAX_THREADS))]
     threads: Option<usize>,
 }
 
@@ -104,6 +104,9 @@ pub fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // Whoever reads stdout has stopped reading (`| head`): nothing more to say, as
+        // ripgrep and the other line tools do.
+        Err(e) if is_closed_stdout(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", crate::fsutil::without_temporary_names(&one_line(&e)));
             if e.downcast_ref::<UsageError>().is_some() {
@@ -133,6 +136,46 @@ pub(crate) fn usage(message: impl std::fmt::Display) -> anyhow::Error {
     anyhow::Error::new(UsageError(message.to_string()))
 }
 
+/// The most worker threads `--threads` starts: all start before any work, and hundreds
+/// more than there are cores only take turns spinning (1024 on two cores: 50 s to start).
+pub(crate) const MAX_THREADS: usize = 256;
+
+/// Writes `text` and a line break to stdout. A closed pipe or a full device is an error
+/// (see [`StdoutError`]) instead of the panic of `println!`.
+pub(crate) fn print(text: impl std::fmt::Display) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}").and_then(|()| out.flush()).map_err(|e| anyhow::Error::new(StdoutError(e)))
+}
+
+/// Stdout could not be written: a closed pipe ends the run quietly, anything else (a full
+/// disk, `> /dev/full`) is one error line.
+#[derive(Debug)]
+pub(crate) struct StdoutError(std::io::Error);
+
+impl std::fmt::Display for StdoutError {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "cannot write to standard output: {}", self.0)
+    }
+}
+
+impl std::error::Error for StdoutError {}
+
+fn is_closed_stdout(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<StdoutError>().is_some_and(|s| s.0.kind() == std::io::ErrorKind::BrokenPipe)
+}
+
+/// A parser for a whole number from `min` to `max`.
+pub(crate) fn in_range(
+    min: usize,
+    max: usize,
+) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |s| match s.trim().parse::<usize>() {
+        Ok(v) if (min..=max).contains(&v) => Ok(v),
+        _ => Err(format!("expected a whole number from {min} to {max}")),
+    }
+}
+
 /// A parser for a whole-number flag of at least `min`.
 pub(crate) fn at_least(min: usize) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
     move |s| match s.trim().parse::<usize>() {
@@ -149,25 +192,40 @@ pub(crate) fn positive_number(s: &str) -> Result<f32, String> {
     }
 }
 
-/// A parser for the side of a square neighbourhood: odd and at least 3.
+/// The largest neighbourhood side any flag accepts; the sample's levels bound it further.
+pub(crate) const MAX_NEIGHBOURHOOD: usize = 63;
+
+/// A parser for the side of a square neighbourhood: odd, from 3 to [`MAX_NEIGHBOURHOOD`].
 pub(crate) fn odd_side(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
-        Ok(v) if v >= 3 && v % 2 == 1 => Ok(v),
-        _ => Err("expected an odd whole number of at least 3 (3, 5, 7, …)".into()),
+        Ok(v) if (3..=MAX_NEIGHBOURHOOD).contains(&v) && v % 2 == 1 => Ok(v),
+        _ => Err(format!("expected an odd whole number from 3 to {MAX_NEIGHBOURHOOD} (3, 5, 7, …)")),
     }
 }
 
 /// SIGINT, SIGTERM and SIGHUP remove every unfinished output before the process exits, so
-/// an interrupted run leaves nothing hidden behind.
+/// an interrupted run leaves nothing hidden behind; the message names the outputs that were
+/// already complete (commits come last, so that is rare and only ever whole outputs).
 fn clean_up_when_interrupted() {
     let installed = ctrlc::set_handler(|| {
-        crate::fsutil::remove_staged();
-        eprintln!("\nerror: interrupted; unfinished outputs were removed");
+        let committed = crate::fsutil::remove_staged();
+        // On a terminal the line starts after the echoed ^C.
+        let start = if std::io::IsTerminal::is_terminal(&std::io::stderr()) { "\n" } else { "" };
+        eprintln!("{start}{}", interrupted_message(&committed));
         std::process::exit(130);
     });
     if let Err(e) = installed {
         tracing::warn!("cannot clean up on Ctrl-C: {e}");
     }
+}
+
+/// The line an interrupted run ends with, after `committed` outputs were written.
+fn interrupted_message(committed: &[std::path::PathBuf]) -> String {
+    if committed.is_empty() {
+        return "error: interrupted; unfinished outputs were removed".into();
+    }
+    let names: Vec<String> = committed.iter().map(|p| p.display().to_string()).collect();
+    format!("error: interrupted after writing {}; unfinished outputs were removed", names.join(", "))
 }
 
 /// Help and version go to stdout as clap prints them; a usage error becomes one line and
@@ -236,6 +294,7 @@ fn init_logging(verbose: u8) {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .without_time()
         .try_init();
 }

@@ -6,7 +6,7 @@ use crate::btf::Direction;
 use crate::render::ambient::AmbientLight;
 use crate::render::relight::relight;
 use crate::render::{FrameFormat, Material};
-use anyhow::{bail, Result};
+use anyhow::Result;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -47,7 +47,7 @@ fn format_of(path: &Path) -> Result<FrameFormat> {
     match path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).as_deref() {
         Some("png") => Ok(FrameFormat::Png),
         Some("exr") => Ok(FrameFormat::Exr),
-        _ => bail!("{}: the output is a .png or .exr file", path.display()),
+        _ => Err(super::usage(format!("-o {}: the output is a .png or .exr file", path.display()))),
     }
 }
 
@@ -56,11 +56,18 @@ pub fn run(args: RelightArgs, bars: &Bars) -> Result<()> {
     let (sun, environment) = args.lighting.lighting()?;
     let sun_direction = match (args.light, sun > 0.0, &environment) {
         (Some(l), _, _) => Some(l),
-        (None, true, Some(_)) => bail!("--env sky puts its sun along --light: give --light θ,φ"),
-        (None, _, None) => bail!("nothing lights the sample: give --light θ,φ, --env or --ambient"),
+        (None, true, Some(_)) => {
+            return Err(super::usage("--env sky puts its sun along --light: give --light θ,φ"))
+        }
+        (None, _, None) => {
+            return Err(super::usage("nothing lights the sample: give --light θ,φ, --env or --ambient"))
+        }
         (None, _, Some(_)) => None,
     };
-    crate::fsutil::check_target(&args.output, args.force)?;
+    let env_file = args.lighting.env_file();
+    let inputs: Vec<&Path> = [Some(args.input.as_path()), env_file].into_iter().flatten().collect();
+    crate::fsutil::check_not_input("-o", &args.output, &inputs)?;
+    let staged = crate::fsutil::Staged::file(&args.output, args.force)?;
     let material = Material::open_any(&args.input, bars)?;
     let view = Direction::new(args.view.0, args.view.1)?.unit();
     let light = match sun_direction {
@@ -69,7 +76,8 @@ pub fn run(args: RelightArgs, bars: &Bars) -> Result<()> {
     };
     let ambient = environment.map(|e| AmbientLight::new(&material, e));
     let frame = relight(&material, view, light, ambient.as_ref());
-    crate::fsutil::write_with_temp(&args.output, |tmp| frame.save(tmp, format))?;
+    frame.save(staged.path(), format)?;
+    let written = staged.commit()?;
     eprintln!(
         "relit the {}x{} sample ({} images) seen from θ={}° φ={}°",
         material.width(),
@@ -78,6 +86,6 @@ pub fn run(args: RelightArgs, bars: &Bars) -> Result<()> {
         args.view.0,
         args.view.1
     );
-    println!("{}", args.output.display());
+    super::print(written.display())?;
     Ok(())
 }

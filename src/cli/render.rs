@@ -41,8 +41,10 @@ pub struct RenderArgs {
 pub fn run(args: RenderArgs, bars: &Bars) -> Result<()> {
     let plan = args.shots.plan();
     let (sun, environment) = args.lighting.lighting()?;
+    args.shots.check_output(&args.output, &args.lighting, None)?;
     let mut writer = SequenceWriter::new(&args.output, &[args.out.format], args.out.force)?;
     let (scene, analysis) = args.shots.open_surface()?;
+    args.shots.check_output(&args.output, &args.lighting, Some(&analysis))?;
     let material = Material::open(&analysis)?;
     let started = Instant::now();
     let options = RenderOptions { mode: args.shots.mode, shadows: !args.no_shadows, spp: args.spp, sun };
@@ -66,8 +68,7 @@ pub fn run(args: RenderArgs, bars: &Bars) -> Result<()> {
         per_frame,
         started.elapsed().as_secs_f64()
     );
-    println!("{}", dir.join("contact.png").display());
-    Ok(())
+    super::print(dir.join("contact.png").display())
 }
 
 /// `--spp`: a square number of samples per pixel.

@@ -6,6 +6,10 @@ use anyhow::Result;
 use glam::Vec3;
 use std::path::PathBuf;
 
+/// The most frames of one run: every frame's thumbnail stays in memory until the contact
+/// sheet is drawn (256 pixels wide, up to 1 MiB each).
+pub const MAX_FRAMES: usize = 1000;
+
 /// The surface map, the camera and light, and the shading mode.
 #[derive(clap::Args, Clone, Debug)]
 pub struct ShotArgs {
@@ -22,8 +26,9 @@ pub struct ShotArgs {
     /// Image size in pixels.
     #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
-    /// Number of frames, at least 1. With more than one and no --view-orbit, the light orbits.
-    #[arg(long, default_value_t = 1, value_parser = super::at_least(1))]
+    /// Number of frames, 1 to 1000 (each is kept as a thumbnail for the contact sheet).
+    /// With more than one and no --view-orbit, the light orbits.
+    #[arg(long, default_value_t = 1, value_parser = super::in_range(1, MAX_FRAMES))]
     pub frames: usize,
     /// The light circles the model at its --light elevation, one turn over the frames.
     #[arg(long)]
@@ -62,6 +67,14 @@ pub struct LightingArgs {
 }
 
 impl LightingArgs {
+    /// The environment map file, if `--env` names one (an input).
+    pub fn env_file(&self) -> Option<&std::path::Path> {
+        match self.env.as_deref() {
+            None | Some("uniform" | "sky" | "sky+sun") => None,
+            Some(file) => Some(std::path::Path::new(file)),
+        }
+    }
+
     /// The directional light's strength (0 or 1) and the environment, if any.
     pub fn lighting(&self) -> Result<(f32, Option<Environment>)> {
         let (sun, env) = match self.env.as_deref() {
@@ -123,6 +136,22 @@ impl ShotArgs {
     /// other unless `--force-analysis`.
     pub fn open_surface(&self) -> anyhow::Result<(Scene, PathBuf)> {
         open_surface(&self.surface, self.analysis.as_deref(), !self.force_analysis).map_err(with_force_hint)
+    }
+
+    /// Refuses an output directory that is, holds or lies inside an input: the surface map,
+    /// the analysis (as given, or `resolved` from the map) or the environment map.
+    pub fn check_output(
+        &self,
+        output: &std::path::Path,
+        lighting: &LightingArgs,
+        resolved: Option<&std::path::Path>,
+    ) -> anyhow::Result<()> {
+        let inputs: Vec<&std::path::Path> =
+            [Some(self.surface.as_path()), self.analysis.as_deref(), lighting.env_file(), resolved]
+                .into_iter()
+                .flatten()
+                .collect();
+        Ok(crate::fsutil::check_not_input("-o", output, &inputs)?)
     }
 
     /// The `--mode` value as typed.

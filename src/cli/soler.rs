@@ -4,7 +4,7 @@
 use super::progress::Bars;
 use super::usage;
 use crate::analysis::images::SampleImages;
-use crate::fsutil::{check_target, write_file_atomic};
+use crate::fsutil::{commit_all, Staged};
 use crate::synth::patches::fit::{ColourSpace, FitImage};
 use crate::synth::patches::output::{write_uv_map, Provenance};
 use crate::synth::patches::{map_mesh, SolerParams};
@@ -67,23 +67,20 @@ pub struct SolerArgs {
 pub struct Common<'a> {
     pub analysis: &'a Path,
     pub mesh: &'a Path,
-    pub output: &'a Path,
+    /// The output, reserved under a temporary name.
+    pub output: Staged,
     pub scale: Option<f32>,
     pub texels_across: Option<f32>,
     pub seed: u64,
-    pub report: Option<&'a Path>,
-    pub force: bool,
+    pub report: Option<Staged>,
 }
 
 pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
-    let output = common.output;
+    let output = common.output.target().to_path_buf();
+    let output = output.as_path();
     let ext = output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if ext != "ply" && ext != "obj" {
         return Err(usage(format!("-o {}: --method soler2002 writes a .ply or .obj mesh", output.display())));
-    }
-    check_target(output, common.force)?;
-    if let Some(report) = common.report {
-        check_target(report, true)?;
     }
     let started = Instant::now();
     let manifest = crate::analysis::store::read_manifest(common.analysis)?;
@@ -144,7 +141,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         texel: 1.0 / texels_per_unit,
         params: params_json.clone(),
     };
-    write_uv_map(output, &mesh.positions, &mesh.triangles, &result, &provenance)
+    write_uv_map((output, common.output.path()), &mesh.positions, &mesh.triangles, &result, &provenance)
         .with_context(|| format!("writing {}", output.display()))?;
     let report = &result.report;
     let [hierarchy, flattening, transforms, mapping] = report.seconds;
@@ -175,18 +172,25 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
             l.seconds
         );
     }
+    let mut outputs = vec![common.output];
+    if let Some(staged) = common.report {
+        params_json["seconds"] = serde_json::json!(report.seconds);
+        let json = serde_json::json!({"params": params_json, "faces": report.faces, "carried_faces": report.carried_faces,
+            "clusters": report.clusters, "levels": report.levels, "seconds": started.elapsed().as_secs_f64()});
+        std::fs::write(staged.path(), serde_json::to_string_pretty(&json)?)
+            .map_err(|e| crate::Error::io(staged.target(), e))?;
+        outputs.push(staged);
+    }
+    let committed = commit_all(outputs)?;
     eprintln!(
         "wrote {} ({} faces of the original mesh, {:.1} texels per unit) in {:.1} s",
-        output.display(),
+        committed[0].display(),
         mesh.triangles.len(),
         texels_per_unit,
         started.elapsed().as_secs_f64()
     );
-    if let Some(path) = common.report {
-        params_json["seconds"] = serde_json::json!(report.seconds);
-        let json = serde_json::json!({"params": params_json, "faces": report.faces, "carried_faces": report.carried_faces,
-            "clusters": report.clusters, "levels": report.levels, "seconds": started.elapsed().as_secs_f64()});
-        write_file_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    if let Some(report) = committed.get(1) {
+        eprintln!("wrote {}", report.display());
     }
     Ok(())
 }

@@ -2,7 +2,7 @@
 
 use super::progress::Bars;
 use super::usage;
-use crate::fsutil::{check_target, write_file_atomic};
+use crate::fsutil::{check_apart, check_not_input, commit_all, Staged};
 use crate::mesh::field::Orientation;
 use crate::synth::plane::{synthesize_plane, write_plane};
 use crate::synth::round::{MarchingCache, MarchingOrigin};
@@ -125,21 +125,33 @@ pub struct SynthArgs {
     soler: super::soler::SolerArgs,
 }
 
+/// The most cells a plane may have (the library's limit, 2^26 = 8192 × 8192).
+const MAX_PLANE_AREA: usize = 1 << 26;
+
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
-    let bad = || format!("'{s}': expected WxH with positive integers, e.g. 128x128");
+    let bad = || format!("'{s}': expected WxH with positive integers and W × H at most 2^26, e.g. 128x128");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     match (w.trim().parse::<usize>(), h.trim().parse::<usize>()) {
-        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok((w, h)),
+        (Ok(w), Ok(h)) if w > 0 && h > 0 && w.checked_mul(h).is_some_and(|a| a <= MAX_PLANE_AREA) => {
+            Ok((w, h))
+        }
         _ => Err(bad()),
+    }
+}
+
+/// Level reports as an output file records them: without wall-clock times, so that the
+/// same seed gives the same bytes (the times go to `--report`; serialized as null).
+pub(super) fn untimed(reports: &mut [LevelReport]) {
+    for r in reports {
+        r.seconds = f64::NAN;
     }
 }
 
 pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if args.list_presets {
-        for p in Preset::all() {
-            println!("{:<12} {}", p.name, p.paper);
-        }
-        return Ok(());
+        let lines: Vec<String> =
+            Preset::all().iter().map(|p| format!("{:<12} {}", p.name, p.paper)).collect();
+        return super::print(lines.join("\n"));
     }
     // clap drops `requires = "plane"` once MESH (which conflicts with --plane) is given.
     if args.mesh.is_some() && (args.tileable_output || !args.views.is_empty() || !args.lights.is_empty()) {
@@ -148,13 +160,37 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     let (Some(analysis), Some(output)) = (args.analysis.clone(), args.output.clone()) else {
         return Err(usage("give an ANALYSIS and -o OUT"));
     };
+    // Every output is checked (and reserved under a temporary name) before any work; they
+    // are moved into place together at the very end.
+    let orient_file = Some(Path::new(&args.orient)).filter(|p| p.exists());
+    let inputs: Vec<&Path> =
+        [Some(analysis.as_path()), args.mesh.as_deref(), args.recipe.as_deref(), orient_file]
+            .into_iter()
+            .flatten()
+            .collect();
+    check_not_input("-o", &output, &inputs)?;
+    let staged_output = match args.plane {
+        Some(_) => Staged::dir(&output, args.force)?,
+        None => Staged::file(&output, args.force)?,
+    };
+    let staged_report = match &args.report {
+        Some(report) => {
+            check_not_input("--report", report, &inputs)?;
+            check_apart("--report", report, &output)?;
+            Some(Staged::file(report, args.force)?)
+        }
+        None => None,
+    };
     if args.method == super::soler::Method::Soler2002 {
-        return soler2002(&args, &analysis, &output, bars);
+        return soler2002(&args, &analysis, (staged_output, staged_report), bars);
     }
-    check_target(&output, args.force)?;
-    if let Some(report) = &args.report {
-        check_target(report, true)?;
-    }
+    let orientation = match &args.mesh {
+        Some(_) => Some(Orientation::parse(&args.orient).map_err(|e| match e {
+            crate::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
+            other => other.into(),
+        })?),
+        None => None,
+    };
     let manifest = crate::analysis::store::read_manifest(&analysis)?;
     let levels = args.levels.unwrap_or(manifest.levels.len());
     if levels > manifest.levels.len() {
@@ -167,6 +203,8 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     if k > manifest.k {
         return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
     }
+    check_neighbourhood(args.neighborhood, &manifest, levels)?;
+    crate::analysis::store::verify_levels(&analysis, &manifest, levels)?;
     let mut sample = Sample::open(&analysis, levels)?;
     let search = match args.search {
         SearchKind::Kcoherence => Search::KCoherence { k },
@@ -193,42 +231,76 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,
         "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
     });
-    let reports = match (&args.mesh, args.plane) {
-        (Some(mesh), None) => {
+    let started = Instant::now();
+    let (reports, written) = match (&args.mesh, args.plane, orientation) {
+        (Some(mesh), None, Some(orientation)) => {
             let density = density(&args, manifest.width);
             params_json["orient"] = args.orient.clone().into();
             params_json["density"] = density.to_string().into();
-            surface(
+            let (reports, vertices) = surface(
                 &args,
-                (&analysis, &output),
-                mesh,
+                (&analysis, staged_output.path()),
+                (mesh, &orientation),
                 &sample,
                 (&params, marching_cache.as_ref()),
                 density,
                 levels,
                 &mut params_json,
                 bars,
-            )?
+            )?;
+            (reports, format!("({vertices} vertices) in {:.1} s", started.elapsed().as_secs_f64()))
         }
-        (None, Some(size)) => {
-            let result = synthesize_plane(&sample, size, args.tileable_output, &params, bars)?;
+        (None, Some(size), _) => {
+            let mut result = synthesize_plane(&sample, size, args.tileable_output, &params, bars)?;
             let probes = shown_probes(&args, &analysis)?;
-            let written = write_plane(&result, &analysis, &probes, params_json.clone(), &output, args.force)?;
-            print_reports(&result.reports);
-            eprintln!("wrote a {}x{} plane to {}", size.0, size.1, written.display());
-            result.reports
+            let reports = result.reports.clone();
+            untimed(&mut result.reports);
+            write_plane(&result, &analysis, &probes, params_json.clone(), staged_output.path(), false)?;
+            print_reports(&reports);
+            (reports, format!("(a {}x{} plane)", size.0, size.1))
         }
         _ => return Err(usage("give either a MESH or --plane WxH")),
     };
-    if let Some(report) = &args.report {
+    let mut outputs = vec![staged_output];
+    if let Some(report) = staged_report {
         let json = serde_json::json!({"params": params_json, "levels": reports});
-        write_file_atomic(report, serde_json::to_string_pretty(&json)?.as_bytes())?;
+        std::fs::write(report.path(), serde_json::to_string_pretty(&json)?)
+            .map_err(|e| crate::Error::io(report.target(), e))?;
+        outputs.push(report);
+    }
+    let committed = commit_all(outputs)?;
+    eprintln!("wrote {} {written}", committed[0].display());
+    if let Some(report) = committed.get(1) {
+        eprintln!("wrote {}", report.display());
+    }
+    Ok(())
+}
+
+/// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there
+/// would have a whole neighbourhood to copy.
+fn check_neighbourhood(n: usize, manifest: &crate::analysis::store::Manifest, levels: usize) -> Result<()> {
+    let Some(coarsest) = manifest.levels.get(levels.max(1) - 1) else { return Ok(()) };
+    let side = coarsest.width.min(coarsest.height);
+    if n > side {
+        let fit = if side % 2 == 1 { side } else { side.saturating_sub(1) };
+        return Err(usage(format!(
+            "--neighborhood {n}: the analysis' coarsest level in use (level {}) is {}x{} texels, \
+             which hold no whole {n}x{n} neighbourhood; use at most {fit}, or fewer --levels",
+            levels - 1,
+            coarsest.width,
+            coarsest.height
+        )));
     }
     Ok(())
 }
 
 /// `--method soler2002`: the mesh is mapped as it is, so the per-vertex engine's flags do not apply.
-fn soler2002(args: &SynthArgs, analysis: &Path, output: &Path, bars: &Bars) -> Result<()> {
+fn soler2002(
+    args: &SynthArgs,
+    analysis: &Path,
+    (output, report): (Staged, Option<Staged>),
+    bars: &Bars,
+) -> Result<()> {
     let Some(mesh) = &args.mesh else { return Err(usage("--method soler2002 maps a MESH (not --plane)")) };
     if args.vertices.is_some()
         || args.recipe.is_some()
@@ -244,15 +316,14 @@ fn soler2002(args: &SynthArgs, analysis: &Path, output: &Path, bars: &Bars) -> R
         scale: args.scale,
         texels_across: args.texels_across,
         seed: args.seed,
-        report: args.report.as_deref(),
-        force: args.force,
+        report,
     };
     super::soler::run(common, &args.soler, bars)
 }
 
 /// The recipe in `file` (see `--recipe`), checked; any problem is a usage error naming the file.
 fn read_recipe(file: &Path) -> Result<Preset> {
-    let text = std::fs::read_to_string(file)
+    let text = crate::fsutil::read_input_text(file)
         .map_err(|e| usage(format!("--recipe {}: cannot read it: {e}", file.display())))?;
     Preset::from_json(&text).map_err(|e| usage(format!("--recipe {}: {e}", file.display())))
 }
@@ -278,19 +349,20 @@ fn density(args: &SynthArgs, sample_width: usize) -> Density {
     }
 }
 
+/// Synthesizes on the mesh and writes the surface map to `ply` (the output's temporary
+/// name); returns the level reports and the finest mesh's vertex count.
 #[allow(clippy::too_many_arguments)]
 fn surface(
     args: &SynthArgs,
-    (analysis, output): (&Path, &Path),
-    mesh_path: &Path,
+    (analysis, ply): (&Path, &Path),
+    (mesh_path, orientation): (&Path, &Orientation),
     sample: &Sample,
     (params, marching_cache): (&SynthParams, Option<&MarchingCache>),
     density: Density,
     levels: usize,
     params_json: &mut serde_json::Value,
     bars: &Bars,
-) -> Result<Vec<LevelReport>> {
-    let orientation = Orientation::parse(&args.orient)?;
+) -> Result<(Vec<LevelReport>, usize)> {
     let mesh = crate::mesh::load(mesh_path)?;
     if !matches!(density, Density::Vertices(_)) {
         let texel = density.texel(&mesh).map_err(usage)?;
@@ -299,8 +371,7 @@ fn surface(
         check_vertices(estimate.round() as usize, flag, levels, args.neighborhood)
             .with_context(|| format!("{} at {density}", mesh_path.display()))?;
     }
-    let started = Instant::now();
-    let pyramid = build_pyramid_cached(&mesh, density, levels, &orientation, params, marching_cache, bars)
+    let pyramid = build_pyramid_cached(&mesh, density, levels, orientation, params, marching_cache, bars)
         .with_context(|| format!("preparing {}", mesh_path.display()))?;
     let marchings: Vec<Option<MarchingOrigin>> =
         pyramid.targets.iter().map(|t| t.round.as_ref().map(|r| r.origin)).collect();
@@ -319,7 +390,7 @@ fn surface(
     let (state, reports) = synthesize_surface(&pyramid, sample, params, bars)?;
     print_reports(&reports);
     // Timings go to the report only, after the PLY is written.
-    write_surface_ply(output, &pyramid.levels[0], &state, (analysis, mesh_path), params_json)?;
+    write_surface_ply(ply, &pyramid.levels[0], &state, (analysis, mesh_path), params_json)?;
     params_json["prepare_seconds"] = serde_json::json!({"remesh": pyramid.seconds[0], "frames": pyramid.seconds[1], "templates": pyramid.seconds[2]});
     params_json["mesh_levels"] = pyramid
         .levels
@@ -329,13 +400,7 @@ fn surface(
     if marchings.iter().any(Option::is_some) {
         params_json["marching"] = serde_json::json!(marchings);
     }
-    eprintln!(
-        "wrote {} ({} vertices) in {:.1} s",
-        output.display(),
-        pyramid.levels[0].mesh.vertex_count(),
-        started.elapsed().as_secs_f64()
-    );
-    Ok(reports)
+    Ok((reports, pyramid.levels[0].mesh.vertex_count()))
 }
 
 /// Refuses a finest mesh of `vertices` (set by `flag`) too small to synthesize `levels`

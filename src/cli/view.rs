@@ -93,8 +93,10 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     let Some(dir) = &args.output else {
         return Err(super::usage("--headless renders into a directory: give -o DIR"));
     };
+    args.shots.check_output(dir, &args.lighting, None)?;
     let mut writer = SequenceWriter::new(dir, &[args.out.format], args.out.force)?;
     let (scene, analysis) = args.shots.open_surface()?;
+    args.shots.check_output(dir, &args.lighting, Some(&analysis))?;
     let material = Material::open(&analysis)?;
     let vertices = scene.mesh.vertex_count();
     let mut renderer = GpuRenderer::headless(scene, material, plan.size, lighting)?;
@@ -121,6 +123,5 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
         renderer.target_format().samples,
         1e3 * seconds / shots.len() as f64
     );
-    println!("{}", dir.join("contact.png").display());
-    Ok(())
+    super::print(dir.join("contact.png").display())
 }

@@ -22,7 +22,7 @@ pub mod textures;
 mod uvmap;
 
 use crate::btf::Direction;
-use crate::fsutil::{check_target, write_file_atomic};
+use crate::fsutil::{check_not_input, check_target, commit_all, Staged};
 use crate::maps::{stored::open_maps, MapKind};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::textured::{load_textured, TexturedMesh};
@@ -134,6 +134,10 @@ pub fn export(
         return uvmap::export_uv_map(surface, output, binary, options);
     }
     let (scene, analysis_dir) = open_surface(surface, options.analysis.as_deref(), !options.force_analysis)?;
+    // The analysis the map names is an input too: nothing may be written into it.
+    for file in output_files(output, binary) {
+        check_not_input("-o", &file, &[surface, &analysis_dir])?;
+    }
     let material = Material::open(&analysis_dir)?;
     let light = options.light.filter(|_| material.len() > 1);
     if options.light.is_some() && light.is_none() {
@@ -438,8 +442,8 @@ fn output_files(output: &Path, binary: bool) -> Vec<PathBuf> {
     Document::new("").to_gltf_files(&stem(output)).into_iter().map(|(name, _)| dir.join(name)).collect()
 }
 
-/// Writes the document; for `.gltf`, every companion file first and the `.gltf` last. If a
-/// write fails, the files this call already wrote are removed.
+/// Writes the document; a `.gltf` and its companion files are staged and moved into place
+/// together, so a failed or interrupted export replaces none of them.
 fn write_document(document: Document, output: &Path, binary: bool, overwrite: bool) -> Result<Vec<PathBuf>> {
     let files = if binary {
         vec![(output.to_path_buf(), document.to_glb())]
@@ -451,20 +455,11 @@ fn write_document(document: Document, output: &Path, binary: bool, overwrite: bo
             .map(|(name, bytes)| (dir.join(name), bytes))
             .collect()
     };
-    for (path, _) in &files {
-        check_target(path, overwrite)?;
+    let staged = files.iter().map(|(path, _)| Staged::file(path, overwrite)).collect::<Result<Vec<_>>>()?;
+    for (staged, (_, bytes)) in staged.iter().zip(&files) {
+        std::fs::write(staged.path(), bytes).map_err(|e| Error::io(staged.target(), e))?;
     }
-    let mut written = Vec::new();
-    for (path, bytes) in &files {
-        if let Err(e) = write_file_atomic(path, bytes) {
-            for done in &written {
-                let _ = std::fs::remove_file(done);
-            }
-            return Err(e);
-        }
-        written.push(path.clone());
-    }
-    Ok(written)
+    commit_all(staged)
 }
 
 /// The original mesh of the surface map at `surface`: `given` if any, else the header's

@@ -8,7 +8,7 @@
 //!   images in the analysis directory (`map_normal.png`, `map_height.exr`, cropped like the
 //!   sample, at the file's own depth) and lists it in `analysis.json` ([`MapInfo`]).
 //! - `synth --plane` writes `result_<kind>.<png|exr>`, each texel the map's sample at the
-//!   plane's coordinate ([`write_plane_maps`]): same depth, same format, same channels.
+//!   plane's coordinate ([`stored::write_plane_maps`]): same depth, same format, same channels.
 //! - `export` bakes each map into its glTF slot (see `crate::export`).
 
 pub mod image;

@@ -130,7 +130,7 @@ fn check_direction(d: Vec3) -> std::result::Result<Vec3, String> {
 
 /// Reads and validates a constraints file; every error names the file.
 fn load_constraints(path: &Path) -> Result<Vec<Constraint>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::fsutil::read_input_text(path)?;
     let file: ConstraintsFile =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("bad constraints JSON: {e}")))?;
     if file.constraints.is_empty() {

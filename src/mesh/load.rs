@@ -8,9 +8,10 @@ use std::path::Path;
 /// How a mesh file is turned into a [`Mesh`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LoadOptions {
-    /// Vertices closer than this fraction of the bounding-box diagonal are welded into one
-    /// (default `1e-6`: far below any real feature, above the rounding of coordinates
-    /// written with six significant digits). `0` welds only identical positions.
+    /// Vertices closer than this fraction of the bounding-box diagonal (and than 1% of the
+    /// shortest edge at either of them) are welded into one (default `1e-6`: far below any
+    /// real feature, above the rounding of coordinates written with six significant
+    /// digits). `0` welds only identical positions.
     pub weld_tolerance: f32,
 }
 
@@ -30,14 +31,40 @@ pub fn load(path: &Path) -> Result<Mesh> {
 pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Mesh> {
     let soup = read_soup(path)?;
     let mesh = prepare::prepare(soup, path, options)?;
+    check_fans(&mesh, path)?;
     tracing::info!("{}: {}", path.display(), topology::summary(&mesh));
     Ok(mesh)
+}
+
+/// The most triangles one vertex may be a corner of. Polygons are fan-triangulated, so a
+/// polygon of thousands of corners gives one vertex that many slivers, on which remeshing
+/// takes minutes and gigabytes; no real mesh comes near (a vertex has about six).
+pub const MAX_VERTEX_TRIANGLES: usize = 1024;
+
+/// Refuses a vertex in more than [`MAX_VERTEX_TRIANGLES`] triangles.
+fn check_fans(mesh: &Mesh, path: &Path) -> Result<()> {
+    let mut count = vec![0usize; mesh.vertex_count()];
+    for t in mesh.triangles() {
+        for &i in t {
+            count[i as usize] += 1;
+        }
+    }
+    match count.iter().enumerate().find(|&(_, &n)| n > MAX_VERTEX_TRIANGLES) {
+        Some((v, &n)) => Err(Error::format(
+            path,
+            format!(
+                "vertex {v} is a corner of {n} triangles, more than {MAX_VERTEX_TRIANGLES} (a polygon of \
+                 that many corners, fan-triangulated?); triangulate it evenly first"
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Parses `path` into a triangle soup without validating it.
 pub fn read_soup(path: &Path) -> Result<Soup> {
     let parse = parser_for(path)?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::fsutil::read_input(path)?;
     parse(&bytes, path)
 }
 

@@ -4,10 +4,13 @@
 //! non-finite coordinate, an index out of range. Problems with an obvious repair are
 //! repaired with a `tracing` warning:
 //!
-//! 1. coincident vertices are welded (exactly equal, or closer than
-//!    [`LoadOptions::weld_tolerance`] times the bounding-box diagonal);
+//! 1. coincident vertices are welded (exactly equal, or closer than both
+//!    [`LoadOptions::weld_tolerance`] times the bounding-box diagonal and 1% of the
+//!    shortest edge at either vertex, so that a stray far-away triangle cannot make the
+//!    tolerance swallow the model);
 //! 2. degenerate faces (a repeated vertex, or zero area at `f32` precision) and duplicate
-//!    faces (the same three vertices) are dropped;
+//!    faces (the same three vertices) are dropped; a mesh of which more than half the faces
+//!    are degenerate is refused as damaged;
 //! 3. vertices no face uses are dropped;
 //! 4. faces are flipped to agree with the majority of their connected neighbours;
 //! 5. **non-manifold edges and vertices are split**: faces stay joined across an edge only
@@ -53,16 +56,32 @@ pub fn prepare(soup: Soup, path: &Path, options: &LoadOptions) -> Result<Mesh> {
         let (lo, hi) = bounds_of(&positions);
         (hi - lo).length()
     };
-    let (remap, merged) = weld::weld(&positions, options.weld_tolerance * diagonal);
+    let (remap, merged) =
+        weld::weld(&positions, &triangles, weld::LOCAL_FRACTION, options.weld_tolerance * diagonal);
     if merged > 0 {
         tracing::info!("{}: welded {merged} coincident vertices", path.display());
     }
     for t in &mut triangles {
         *t = t.map(|i| remap[i as usize]);
     }
-    let triangles = drop_bad_faces(&positions, triangles, path);
+    let faces = triangles.len();
+    let (triangles, degenerate, duplicate) = drop_bad_faces(&positions, triangles);
     if triangles.is_empty() {
         return Err(Error::format(path, "every face is degenerate (zero area)"));
+    }
+    // A few slivers are repaired; a mesh that is mostly slivers is damaged, and what
+    // would remain of it is not the model.
+    if 2 * degenerate > faces {
+        return Err(Error::format(
+            path,
+            format!("{degenerate} of {faces} faces are degenerate (zero area, or a corner repeated): the mesh is damaged"),
+        ));
+    }
+    if degenerate > 0 || duplicate > 0 {
+        tracing::warn!(
+            "{}: dropped {degenerate} degenerate and {duplicate} duplicate faces of {faces}",
+            path.display()
+        );
     }
     let (positions, mut triangles, dropped) = drop_unused_vertices(positions, triangles);
     // Welded duplicates are unused by now; only report vertices the file left unused.
@@ -119,10 +138,10 @@ fn checked_triangles(triangles: &[[i64; 3]], vertices: usize, path: &Path) -> Re
     Ok(triangles.iter().map(|t| t.map(|i| i as u32)).collect())
 }
 
-/// Drops degenerate faces (repeated vertex, zero area) and repeats of an earlier face.
-fn drop_bad_faces(positions: &[Vec3], triangles: Vec<[u32; 3]>, path: &Path) -> Vec<[u32; 3]> {
-    let before = triangles.len();
-    let mut seen = HashSet::with_capacity(before);
+/// Drops degenerate faces (repeated vertex, zero area) and repeats of an earlier face;
+/// returns the rest and how many of each kind were dropped.
+fn drop_bad_faces(positions: &[Vec3], triangles: Vec<[u32; 3]>) -> (Vec<[u32; 3]>, usize, usize) {
+    let mut seen = HashSet::with_capacity(triangles.len());
     let (mut degenerate, mut duplicate) = (0usize, 0usize);
     let kept: Vec<[u32; 3]> = triangles
         .into_iter()
@@ -140,13 +159,7 @@ fn drop_bad_faces(positions: &[Vec3], triangles: Vec<[u32; 3]>, path: &Path) -> 
             true
         })
         .collect();
-    if degenerate > 0 || duplicate > 0 {
-        tracing::warn!(
-            "{}: dropped {degenerate} degenerate and {duplicate} duplicate faces of {before}",
-            path.display()
-        );
-    }
-    kept
+    (kept, degenerate, duplicate)
 }
 
 /// True for a repeated vertex, or an area below `f32` resolution of its longest edge:

@@ -100,6 +100,13 @@ pub fn synthesize(
     if targets.is_empty() || targets.len() > sample.levels.len() {
         return Err(Error::invalid("synthesis needs one target level per sample level"));
     }
+    let last = &sample.levels[targets.len() - 1];
+    if params.neighborhood > last.width.min(last.height) {
+        return Err(Error::invalid(format!(
+            "a {0}x{0} neighbourhood does not fit in the coarsest sample level in use ({1}x{2})",
+            params.neighborhood, last.width, last.height
+        )));
+    }
     let preset = &params.preset;
     preset.validate()?;
     preset.check_search(params.search)?;

@@ -28,7 +28,7 @@ fn missing_arguments_are_named_and_usage_errors_exit_2() {
     assert_usage_error(&btfsynth(&["gen", "pebbles"]), "--output <DIR>");
     assert_usage_error(&btfsynth(&["render", "x.ply"]), "--output <DIR>");
     assert_usage_error(&btfsynth(&["remesh", BUNNY, "-o", "x.ply"]), "--vertices");
-    assert_usage_error(&btfsynth(&["remesh", BUNNY, "--vertices", "3", "-o", "x.ply"]), "at least 4");
+    assert_usage_error(&btfsynth(&["remesh", BUNNY, "--vertices", "3", "-o", "x.ply"]), "from 4");
     let r = btfsynth(&["--threads", "0", "info", texture]);
     assert_usage_error(&r, "--threads");
     let bare = btfsynth(&[]);
@@ -108,8 +108,78 @@ fn messages_carry_no_rust_debug_text() {
         "-o",
         dir.path().join("t").to_str().unwrap(),
     ]);
-    assert_usage_error(&r, "the sample is 6x6 pixels");
+    // Too small for any analysis: the input is at fault (exit 1, naming it), not a flag.
+    assert_one_line_error(&r, "tiny.png: the sample is 6x6 pixels, too small to analyse");
     assert!(!String::from_utf8_lossy(&r.stderr).contains("--levels 0"));
+}
+
+#[test]
+fn every_value_has_a_range_checked_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let a = analysis.to_str().unwrap();
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    let ply = dir.path().join("out.ply");
+    let p = ply.to_str().unwrap();
+    let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let small = dir.path().join("small.png");
+    common::write_png(&small, 12, 12, common::pattern(2));
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--threads", "100000", "info", texture], "--threads"),
+        (vec!["analyze", texture, "--k", "100000", "-o", o], "--k"),
+        (
+            vec![
+                "analyze",
+                small.to_str().unwrap(),
+                "--levels",
+                "1",
+                "--neighborhood",
+                "3",
+                "--k",
+                "200",
+                "-o",
+                o,
+            ],
+            "--k 200",
+        ),
+        (vec!["analyze", texture, "--appearance-dims", "100000", "-o", o], "--appearance-dims"),
+        (vec!["analyze", texture, "--basis", "100000", "-o", o], "--basis"),
+        (vec!["synth", a, "--plane", "16x16", "--neighborhood", "10001", "-o", o], "--neighborhood"),
+        // The analysis' coarsest level is 24x24 texels.
+        (vec!["synth", a, "--plane", "16x16", "--neighborhood", "25", "-o", o], "--neighborhood 25"),
+        (
+            vec!["synth", a, BUNNY, "--neighborhood", "25", "--preset", "turk2001", "-o", p],
+            "--neighborhood 25",
+        ),
+        (vec!["synth", a, "--plane", "100000x100000", "-o", o], "--plane"),
+        (vec!["synth", a, BUNNY, "--orient", "axis:0,0,0", "-o", p], "--orient"),
+        (vec!["synth", a, BUNNY, "--orient", "axis:nan,0,0", "-o", p], "--orient"),
+        (vec!["synth", a, BUNNY, "--orient", "bogus", "-o", p], "--orient"),
+        (vec!["render", p, "--frames", "100000", "-o", o], "--frames"),
+        (vec!["remesh", BUNNY, "--iterations", "100000000", "--vertices", "100", "-o", p], "--iterations"),
+        (vec!["remesh", BUNNY, "--vertices", "100000000", "-o", p], "--vertices"),
+        (vec!["remesh", BUNNY, "--edge", "1e-9", "-o", p], "vertices, more than 50000000"),
+        (vec!["convert", texture, "--components", "0", "-o", o], "--components"),
+    ];
+    for (args, needle) in cases {
+        let started = std::time::Instant::now();
+        assert_usage_error(&btfsynth(&args), needle);
+        assert!(started.elapsed().as_secs() < 30, "{args:?} is refused at once");
+    }
+    assert!(!out.exists() && !ply.exists(), "nothing written");
+}
+
+#[test]
+fn a_neighbourhood_beyond_the_coarsest_level_is_an_error_in_the_library_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
+    let sample = btfsynth::synth::Sample::open(&analysis, 2).unwrap();
+    let params = btfsynth::synth::SynthParams { neighborhood: 25, ..Default::default() };
+    let silent = btfsynth::progress::Silent;
+    let r = btfsynth::synth::plane::synthesize_plane(&sample, (32, 32), false, &params, &silent);
+    let e = r.err().expect("refused, not a panic").to_string();
+    assert!(e.contains("25x25 neighbourhood does not fit"), "{e}");
 }
 
 #[test]

@@ -48,6 +48,8 @@ fn interrupt(dir: &Path, args: &[&str], signal: &str, hold: bool, ready: impl Fn
     assert_eq!(out.status.code(), Some(130), "{args:?} after {signal}: {stderr}");
     let last = stderr.lines().rfind(|l| !l.trim().is_empty());
     assert_eq!(last, Some("error: interrupted; unfinished outputs were removed"), "{stderr}");
+    // Off a terminal there is no ^C echo to step past: no blank line.
+    assert!(!stderr.lines().any(|l| l.trim().is_empty()), "no blank line: {stderr:?}");
     assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
     assert_eq!(entries(dir), before, "{args:?}: nothing left behind after {signal}");
 }
@@ -120,4 +122,65 @@ fn an_interrupted_synth_leaves_nothing_behind() {
     interrupt(dir.path(), &surface, "-INT", true, staged);
     let plane = ["-q", "synth", a, "--plane", "32x32", "-o", "plane"];
     interrupt(dir.path(), &plane, "-TERM", true, staged);
+}
+
+#[test]
+fn an_interrupted_conversion_keeps_the_old_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let gen = ["-q", "gen", "pebbles", "--size", "16", "--directions", "grid:3", "--spp", "1", "-o", "stack"];
+    let r = common::btfsynth_in(dir.path(), &gen);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r =
+        common::btfsynth_in(dir.path(), &["-q", "convert", "stack", "-o", "old.btf", "--components", "2"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let old = std::fs::read(dir.path().join("old.btf")).unwrap();
+    // The new file is written, then decoded back to measure it, then put in place: a
+    // signal before the end leaves the old file.
+    let args = ["-q", "convert", "stack", "-o", "old.btf", "--components", "4", "--force"];
+    interrupt(dir.path(), &args, "-TERM", true, staged);
+    assert_eq!(std::fs::read(dir.path().join("old.btf")).unwrap(), old, "the old output is intact");
+}
+
+#[test]
+fn an_interrupted_demo_leaves_nothing_and_keeps_an_earlier_one() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("demo-out")).unwrap();
+    std::fs::write(dir.path().join("demo-out").join("bunny.ply"), b"an earlier demo").unwrap();
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data");
+    interrupt(dir.path(), &["-q", "demo", "--data", data], "-INT", true, staged);
+    let kept = std::fs::read(dir.path().join("demo-out").join("bunny.ply")).unwrap();
+    assert_eq!(kept, b"an earlier demo");
+    assert_eq!(entries(&dir.path().join("demo-out")), ["bunny.ply"], "nothing merged into it");
+}
+
+#[test]
+fn an_interrupt_after_the_commit_says_what_was_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+        .args(["-q", "remesh", BUNNY, "--vertices", "300", "-o", "out.ply"])
+        .current_dir(dir.path())
+        .env(btfsynth::fsutil::HOLD_COMMITTED_ENV, "20000")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !dir.path().join("out.ply").exists() {
+        assert!(child.try_wait().unwrap().is_none(), "remesh ended before it could be interrupted");
+        assert!(Instant::now() < deadline, "remesh never wrote its output");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let killed = Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    let last = stderr.lines().rfind(|l| !l.trim().is_empty());
+    assert_eq!(
+        last,
+        Some("error: interrupted after writing out.ply; unfinished outputs were removed"),
+        "the message is true: {stderr}"
+    );
+    assert_eq!(entries(dir.path()), ["out.ply"], "the whole output, nothing else");
+    assert!(std::fs::read(dir.path().join("out.ply")).unwrap().starts_with(b"ply\n"));
 }

@@ -2,7 +2,8 @@
 //! directly or through others. Shared vocabulary lives in leaf modules (`synth::state`,
 //! `synth::slot`, `synth::flatten`), so each module can be read, tested and reused on its
 //! own. Read from the `use` lines and `crate::`/`super::` paths of the code (comments and
-//! test modules left out).
+//! test modules left out). A parent module's relative `use child::…` lines are not read: a
+//! `mod.rs` composes its children, which may name the items it defines.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;

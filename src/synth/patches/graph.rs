@@ -80,7 +80,12 @@ impl SurfaceGraph {
         // Weld coincident corners, then join faces across every welded edge that exactly two
         // faces share (a seam the file left open); an edge of three or more sheets stays open.
         let (lo, hi) = crate::mesh::bounds_of(positions);
-        let (remap, _) = crate::mesh::weld::weld(positions, 1e-6 * (hi - lo).length());
+        let (remap, _) = crate::mesh::weld::weld(
+            positions,
+            triangles,
+            crate::mesh::weld::LOCAL_FRACTION,
+            1e-6 * (hi - lo).length(),
+        );
         let mut graph_face = vec![NONE; triangles.len()];
         let (mut corners, mut file_face) = (Vec::new(), Vec::new());
         for (f, t) in triangles.iter().enumerate() {

@@ -53,10 +53,11 @@ pub fn from_file_uv(uv: Vec2, (w, h): (usize, usize)) -> Vec2 {
     Vec2::new(uv.x * w as f32 - 0.5, (1.0 - uv.y) * h as f32 - 0.5)
 }
 
-/// Writes `mapping` of the mesh (`positions`, `triangles`: the file's) to `path`, a `.ply`
-/// or `.obj`, atomically.
+/// Writes `mapping` of the mesh (`positions`, `triangles`: the file's) as the output `path`,
+/// a `.ply` or `.obj`, into the file `into` (the caller's staged temporary, renamed to
+/// `path` when every output is complete; the comments name `path`).
 pub fn write_uv_map(
-    path: &Path,
+    (path, into): (&Path, &Path),
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     mapping: &PatchMapping,
@@ -71,7 +72,7 @@ pub fn write_uv_map(
             return Err(Error::invalid(format!("{}: the output must be a .ply or .obj file", path.display())))
         }
     };
-    crate::fsutil::write_file_atomic(path, &bytes)
+    std::fs::write(into, &bytes).map_err(|e| Error::io(path, e))
 }
 
 fn comments(path: &Path, p: &Provenance) -> Vec<String> {
