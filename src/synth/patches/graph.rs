@@ -2,7 +2,8 @@
 //! file gives them, joined where their corners coincide.
 //!
 //! Nothing is repaired: corners at the same point (within 10⁻⁶ of the bounding-box
-//! diagonal, as the loaders weld) are one vertex of the graph, so unwelded patches such as
+//! diagonal and 1% of their shortest edge, as the loaders weld) are one vertex of the
+//! graph, so unwelded patches such as
 //! the Utah teapot's join, but the file's own vertices, faces and their order are what the
 //! output keeps. A face whose corners weld onto fewer than three points has no area and no
 //! place in the graph; it is carried along and gets the coordinates of its neighbours. Faces
@@ -58,10 +59,23 @@ impl SurfaceGraph {
                 format!("{m}; --method soler2002 maps the mesh as it is and does not repair it"),
             )
         };
+        // Coincident corners are one point.
+        let (lo, hi) = crate::mesh::bounds_of(positions);
+        let (remap, _) = crate::mesh::weld::weld(
+            positions,
+            triangles,
+            crate::mesh::weld::LOCAL_FRACTION,
+            1e-6 * (hi - lo).length(),
+        );
+        let distinct = |c: [u32; 3]| c[0] != c[1] && c[1] != c[2] && c[0] != c[2];
         // The file's own connectivity must be a manifold: at most two faces on an edge, one
-        // fan of faces around a vertex.
-        let proper: Vec<[u32; 3]> =
-            triangles.iter().copied().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).collect();
+        // fan of faces around a vertex. Faces without area once welded are left out: they
+        // are carried, not joined, so a sliver between two seam copies pinches nothing.
+        let proper: Vec<[u32; 3]> = triangles
+            .iter()
+            .copied()
+            .filter(|t| distinct(*t) && distinct(t.map(|i| remap[i as usize])))
+            .collect();
         let incidences = edge_incidences(&proper);
         if let Some(group) = incidences.chunk_by(|a, b| a.key() == b.key()).find(|g| g.len() > 2) {
             return Err(refuse(format!(
@@ -77,20 +91,13 @@ impl SurfaceGraph {
                 "not a manifold surface: separate fans of faces meet at vertex {v} (counting from 0)"
             )));
         }
-        // Weld coincident corners, then join faces across every welded edge that exactly two
-        // faces share (a seam the file left open); an edge of three or more sheets stays open.
-        let (lo, hi) = crate::mesh::bounds_of(positions);
-        let (remap, _) = crate::mesh::weld::weld(
-            positions,
-            triangles,
-            crate::mesh::weld::LOCAL_FRACTION,
-            1e-6 * (hi - lo).length(),
-        );
+        // Join faces across every welded edge that exactly two faces share (a seam the file
+        // left open); an edge of three or more sheets stays open.
         let mut graph_face = vec![NONE; triangles.len()];
         let (mut corners, mut file_face) = (Vec::new(), Vec::new());
         for (f, t) in triangles.iter().enumerate() {
             let c = t.map(|i| remap[i as usize]);
-            if c[0] != c[1] && c[1] != c[2] && c[0] != c[2] {
+            if distinct(c) {
                 graph_face[f] = corners.len() as u32;
                 corners.push(c);
                 file_face.push(f as u32);
