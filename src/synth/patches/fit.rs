@@ -547,18 +547,27 @@ mod tests {
             let image = noise(48, 40, tileable);
             let fitter = Fitter::new(image.clone(), 8).expect("fitter");
             let angle = fitter.angle(3);
-            let at = Vec2::new(30.0, 20.0);
+            // The copy starts at a whole position of rotation 3's grid (the middle of the
+            // valid ones): the fitter only tries whole positions, and on white noise a copy
+            // between them differs by a sub-texel shift that no placement undoes.
+            let rows = fitter.positions(3, 12, 12);
+            let valid: Vec<usize> = (0..rows.len()).filter(|&y| rows[y].0 <= rows[y].1).collect();
+            let y0 = valid[valid.len() / 2];
+            let x0 = ((rows[y0].0 + rows[y0].1) / 2) as usize;
+            let grid = Placement { rotation: 3, position: (x0, y0), error: 0.0 };
+            let at = fitter.to_sample(&grid).transform_point2(Vec2::ZERO);
             let mask = copied_mask(&image, at, angle, 12);
             let p = fitter.fit(&mask).expect("fft").expect("placed");
-            assert_eq!(p.rotation, 3, "tileable {tileable}");
+            assert_eq!((p.rotation, p.position), (3, (x0, y0)), "tileable {tileable}");
             assert!(p.error < 1e-3, "{}", p.error);
-            let s = fitter.to_sample(&p).transform_point2(Vec2::ZERO);
-            let wrapped = if tileable { Vec2::new(s.x.rem_euclid(48.0), s.y.rem_euclid(40.0)) } else { s };
-            assert!(wrapped.distance(at) < 0.75, "found at {wrapped}, copied from {at}");
-            // Every corner of the placed mask lies in the sample.
             let m = fitter.to_sample(&p);
+            let r = Mat2::from_angle(angle).inverse();
             for c in [Vec2::ZERO, Vec2::new(11.0, 0.0), Vec2::new(0.0, 11.0), Vec2::splat(11.0)] {
-                assert!(fitter.image.inside(m.transform_point2(c)));
+                // The placement maps each mask pixel back to where it was copied from,
+                // inside the sample.
+                let s = m.transform_point2(c);
+                assert!(s.distance(at + r * c) < 1e-3, "pixel {c} at {s}, copied from {}", at + r * c);
+                assert!(fitter.image.inside(s));
             }
             // A mask of noise fits about as badly as two random texels differ.
             let mut rng = ChaCha8Rng::seed_from_u64(9);
@@ -570,6 +579,44 @@ mod tests {
                 .for_each(|(v, &j)| *v = j * (rng.random::<f32>() - 0.5) * 3.4);
             let q = fitter.fit(&random).expect("fft").expect("placed");
             assert!(q.error > 0.8, "{}", q.error);
+        }
+    }
+
+    /// Noise averaged over 5×5 texels (wrapped or clamped at the edges): a texture whose
+    /// values change little within a texel.
+    fn smooth(w: usize, h: usize, tileable: bool) -> FitImage {
+        let noise = noise(w, h, tileable);
+        let mut values = Vec::with_capacity(w * h * 3);
+        let mut v = [0f32; 3];
+        for y in 0..h {
+            for x in 0..w {
+                let mut sum = [0f32; 3];
+                for dy in -2..=2 {
+                    for dx in -2..=2 {
+                        noise.sample(Vec2::new((x as i64 + dx) as f32, (y as i64 + dy) as f32), &mut v);
+                        (0..3).for_each(|c| sum[c] += v[c] / 25.0);
+                    }
+                }
+                values.extend(sum);
+            }
+        }
+        FitImage::new(w, h, 3, values, tileable).expect("image")
+    }
+
+    #[test]
+    fn a_copy_between_grid_positions_is_found_at_the_nearest_one() {
+        for tileable in [true, false] {
+            let image = smooth(48, 40, tileable);
+            let fitter = Fitter::new(image.clone(), 8).expect("fitter");
+            let at = Vec2::new(30.3, 20.6);
+            let mask = copied_mask(&image, at, fitter.angle(3), 12);
+            let p = fitter.fit(&mask).expect("fft").expect("placed");
+            assert_eq!(p.rotation, 3, "tileable {tileable}");
+            assert!(p.error < 0.1, "{}", p.error);
+            let s = fitter.to_sample(&p).transform_point2(Vec2::ZERO);
+            let wrapped = if tileable { Vec2::new(s.x.rem_euclid(48.0), s.y.rem_euclid(40.0)) } else { s };
+            // Within half a grid diagonal of the copy.
+            assert!(wrapped.distance(at) < 0.75, "found at {wrapped}, copied from {at}");
         }
     }
 
