@@ -11,9 +11,11 @@
 //! surface counting as one); a cluster with fewer than three, or with one stretch of border
 //! longer than a third of its perimeter, gets more, spread along the border.
 //!
-//! Seeds are spread by farthest-point sampling from a random first face (the paper draws
-//! them at random and checks the non-alignment of the resulting control polygons; spread
-//! seeds give round regions, whose polygons are not flat).
+//! Seeds are spread by farthest-point sampling from a random first face, then moved to
+//! their regions' centres and grown again a few times (Lloyd's iteration) so that regions
+//! of a level have nearly the same size (the paper draws them at random and checks the
+//! non-alignment of the resulting control polygons; spread seeds give round regions, whose
+//! polygons are not flat).
 
 use super::graph::{SurfaceGraph, NONE};
 use rand::Rng;
@@ -309,6 +311,29 @@ fn grow(
             _ => break,
         }
     }
+    let mut regions = collect_regions(faces, s);
+    // Farthest-point seeds leave the first seed's region and those in corners far larger
+    // than the rest; moving each seed to its region's centre and growing again (Lloyd's
+    // iteration) evens them out, as the paper asks ("a nearly uniform region size").
+    for _ in 0..LLOYD_ROUNDS {
+        if regions.len() < 2 {
+            break;
+        }
+        let seeds: Vec<u32> = regions.iter().map(|r| central_face(graph, r)).collect();
+        s.mark(faces);
+        for (label, &seed) in seeds.iter().enumerate() {
+            grow_from(graph, seed, label as u32, s);
+        }
+        regions = collect_regions(faces, s);
+    }
+    regions
+}
+
+/// Rounds of seed re-centring in [`grow`].
+const LLOYD_ROUNDS: usize = 3;
+
+/// The faces of the current set by region label, empty regions dropped.
+fn collect_regions(faces: &[u32], s: &Scratch) -> Vec<Vec<u32>> {
     let count = faces.iter().map(|&f| s.region[f as usize]).max().unwrap_or(0) as usize + 1;
     let mut regions = vec![Vec::new(); count];
     for &f in faces {
@@ -316,6 +341,23 @@ fn grow(
     }
     regions.retain(|r| !r.is_empty());
     regions
+}
+
+/// The face of `region` whose centroid is nearest the region's area-weighted centroid.
+fn central_face(graph: &SurfaceGraph, region: &[u32]) -> u32 {
+    let (sum, weight) = region.iter().fold((glam::DVec3::ZERO, 0f64), |(p, w), &f| {
+        let a = f64::from(graph.area[f as usize]).max(1e-30);
+        (p + graph.centroid[f as usize].as_dvec3() * a, w + a)
+    });
+    let centre = (sum / weight).as_vec3();
+    region
+        .iter()
+        .copied()
+        .min_by(|&a, &b| {
+            let d = |f: u32| graph.centroid[f as usize].distance_squared(centre);
+            d(a).total_cmp(&d(b)).then(a.cmp(&b))
+        })
+        .unwrap_or(region[0])
 }
 
 /// Hands a face to the region holding two or three of its edges' neighbours when both
