@@ -16,7 +16,7 @@ use btfsynth::synth::patches::chart::Flattening;
 use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
 use btfsynth::synth::patches::graph::SurfaceGraph;
 use btfsynth::synth::patches::hierarchy::Hierarchy;
-use btfsynth::synth::patches::quality::seam_quality;
+use btfsynth::synth::patches::quality::{border_discontinuity, seam_quality};
 use btfsynth::synth::patches::{map_mesh, SolerParams};
 use rand::SeedableRng;
 use std::path::Path;
@@ -122,41 +122,10 @@ fn main() {
             (3000, 1),
         )
         .expect("measured");
-        // The discontinuity along patch borders: squared difference (fitting space) of the two
-        // sides' texture at points along every shared edge, over a random pair's (2).
-        let (mut total, mut n) = (0f64, 0usize);
-        let (mut a, mut b) = (vec![0f32; 3], vec![0f32; 3]);
-        for f in 0..graph.face_count() {
-            for k in 0..3 {
-                let g = graph.across[f][k];
-                if g == u32::MAX || (g as usize) < f {
-                    continue;
-                }
-                let (ff, fg) = (graph.file_face[f] as usize, graph.file_face[g as usize] as usize);
-                if m.cluster[ff] == m.cluster[fg] {
-                    continue;
-                }
-                let uv_of = |gf: usize, file: usize, v: u32| {
-                    let kk = graph.corner_of(gf as u32, v).unwrap();
-                    m.corner_uv[file][graph.file_corner[gf][kk] as usize]
-                };
-                let (va, vb) = (graph.corners[f][k], graph.corners[f][(k + 1) % 3]);
-                let (pa, pb) = (uv_of(f, ff, va), uv_of(f, ff, vb));
-                let (qa, qb) = (uv_of(g as usize, fg, va), uv_of(g as usize, fg, vb));
-                for i in 0..=8 {
-                    let t = i as f32 / 8.0;
-                    fit.sample(pa.lerp(pb, t), &mut a);
-                    fit.sample(qa.lerp(qb, t), &mut b);
-                    total += a.iter().zip(&b).map(|(x, y)| f64::from((x - y) * (x - y))).sum::<f64>() / 2.0;
-                    n += 1;
-                }
-            }
-        }
-        println!(
-            "  border discontinuity {:.3} of a random pair's over {} points",
-            total / n.max(1) as f64,
-            n
-        );
+        let (jump, n) =
+            border_discontinuity(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit)
+                .expect("measured");
+        println!("  border discontinuity {:.3} of a random pair's over {} points", jump, n);
         (m, q, seconds)
     };
     let (m, q, seconds) = run(true);
