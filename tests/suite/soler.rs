@@ -181,6 +181,9 @@ fn the_teapots_open_patches_are_mapped_and_non_manifold_input_is_refused() {
     ]);
     assert_one_line_error(&refused, "not a manifold surface");
     assert!(!dir.path().join("x.ply").exists());
+    // A fresh output: outputs are checked (and reserved) before the flags, as for the
+    // per-vertex method, so an existing one would be refused first.
+    let fresh = dir.path().join("flags.ply");
     let usage = btfsynth(&[
         "-q",
         "synth",
@@ -191,7 +194,8 @@ fn the_teapots_open_patches_are_mapped_and_non_manifold_input_is_refused() {
         "--vertices",
         "5000",
         "-o",
-        s(&out),
+        s(&fresh),
     ]);
     assert_usage_error(&usage, "--method soler2002");
+    assert!(!fresh.exists());
 }
