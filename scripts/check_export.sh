@@ -36,7 +36,15 @@ run export "$work/btf.ply" -o "$work/btf.glb" --light 45,30
 run export "$work/btf.ply" -o "$work/btf.gltf" --format exr
 run export "$work/btf.ply" -o "$work/btf-dense.glb" --vertex-colors
 
-files=("$work/photo.glb" "$work/photo.gltf" "$work/btf.glb" "$work/btf.gltf" "$work/btf-dense.glb")
+# Hierarchical pattern mapping: the user's mesh with its own coordinates into the sample,
+# the sample itself (and its maps) as the textures; the stack tiles, so its texture repeats.
+run synth "$work/photo" data/bunny-1k8.obj --method soler2002 -o "$work/soler.ply"
+run export "$work/soler.ply" -o "$work/soler.glb"
+run synth "$work/btf" data/teapot.obj --method soler2002 -o "$work/soler-btf.ply"
+run export "$work/soler-btf.ply" -o "$work/soler-btf.gltf" --light 45,30
+
+files=("$work/photo.glb" "$work/photo.gltf" "$work/btf.glb" "$work/btf.gltf" "$work/btf-dense.glb"
+  "$work/soler.glb" "$work/soler-btf.gltf")
 npm install --silent --no-audit --no-fund --prefix "$work/npm" gltf-validator >/dev/null
 NODE_PATH="$work/npm/node_modules" node scripts/validate_gltf.mjs "${files[@]}"
 

@@ -12,6 +12,7 @@ mod relight;
 mod remesh;
 mod render;
 mod shots;
+mod soler;
 mod synth;
 #[cfg(feature = "gpu")]
 mod view;

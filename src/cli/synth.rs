@@ -25,7 +25,8 @@ enum SearchKind {
 #[derive(clap::Args)]
 #[command(
     after_help = "Examples:\n  btfsynth synth pebbles.analysis/ bunny.obj --texels-across 256 -o bunny.ply\n  \
-btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/"
+btfsynth synth pebbles.analysis/ --plane 128x128 -o plane/\n  \
+btfsynth synth pebbles.analysis/ bunny.obj --method soler2002 -o bunny-uv.ply   # UVs on the mesh as it is"
 )]
 pub struct SynthArgs {
     /// The analysis directory (from `btfsynth analyze`).
@@ -117,6 +118,13 @@ pub struct SynthArgs {
     /// Replace the output if it exists.
     #[arg(long)]
     force: bool,
+    /// How the sample is put on the mesh: vertex (the per-vertex engine, --preset) or
+    /// soler2002 (hierarchical pattern mapping: the mesh as it is, with texture coordinates
+    /// into the sample; --scale or --texels-across size it).
+    #[arg(long, value_enum, default_value_t = super::soler::Method::Vertex)]
+    method: super::soler::Method,
+    #[command(flatten)]
+    soler: super::soler::SolerArgs,
 }
 
 /// The most cells a plane may have (the library's limit, 2^26 = 8192 × 8192).
@@ -175,6 +183,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         }
         None => None,
     };
+    if args.method == super::soler::Method::Soler2002 {
+        return soler2002(&args, &analysis, (staged_output, staged_report), bars);
+    }
     let orientation = match &args.mesh {
         Some(_) => Some(Orientation::parse(&args.orient).map_err(|e| match e {
             btfsynth::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
@@ -287,6 +298,33 @@ fn check_neighbourhood(
         )));
     }
     Ok(())
+}
+
+/// `--method soler2002`: the mesh is mapped as it is, so the per-vertex engine's flags do not apply.
+fn soler2002(
+    args: &SynthArgs,
+    analysis: &Path,
+    (output, report): (Staged, Option<Staged>),
+    bars: &Bars,
+) -> Result<()> {
+    let Some(mesh) = &args.mesh else { return Err(usage("--method soler2002 maps a MESH (not --plane)")) };
+    if args.vertices.is_some()
+        || args.recipe.is_some()
+        || args.preset != "appearance"
+        || args.marching_cache.is_some()
+    {
+        return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --marching-cache"));
+    }
+    let common = super::soler::Common {
+        analysis,
+        mesh,
+        output,
+        scale: args.scale,
+        texels_across: args.texels_across,
+        seed: args.seed,
+        report,
+    };
+    super::soler::run(common, &args.soler, bars)
 }
 
 /// The recipe in `file` (see `--recipe`), checked; any problem is a usage error naming the file.

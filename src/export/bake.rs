@@ -73,7 +73,7 @@ impl MapLookup {
         Ok(MapLookup { kind: map.kind, depth: image.depth, lookup })
     }
 
-    fn at(&self, uv: Vec2) -> Vec3 {
+    pub(crate) fn at(&self, uv: Vec2) -> Vec3 {
         self.lookup.texel(0, uv.x, uv.y)
     }
 }

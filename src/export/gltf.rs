@@ -38,6 +38,8 @@ pub struct Document {
     mesh: Option<Value>,
     material: Value,
     name: String,
+    /// Textures repeat beyond [0, 1] (else they are clamped).
+    repeat: bool,
 }
 
 impl Document {
@@ -105,8 +107,14 @@ impl Document {
         self.attachments.push((data, at.iter().map(|k| k.to_string()).collect()));
     }
 
+    /// Makes the document's one sampler repeat textures beyond [0, 1] (a tileable sample
+    /// mapped directly) instead of clamping them (an atlas).
+    pub fn repeat(&mut self, repeat: bool) {
+        self.repeat = repeat;
+    }
+
     /// A texture showing image `image` with the document's one sampler (trilinear, clamped
-    /// at the atlas' edges); returns its index in `textures`.
+    /// at the atlas' edges unless [`Document::repeat`]); returns its index in `textures`.
     pub fn texture(&mut self, image: usize) -> usize {
         self.textures.push(json!({"sampler": 0, "source": image}));
         self.textures.len() - 1
@@ -226,9 +234,9 @@ impl Document {
         }
         if !self.textures.is_empty() {
             root["textures"] = self.textures.clone().into();
-            // Trilinear filtering, clamped: an atlas does not repeat.
-            root["samplers"] =
-                json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]);
+            // Trilinear filtering, clamped: an atlas does not repeat (a tileable sample does).
+            let wrap = if self.repeat { 10497 } else { 33071 };
+            root["samplers"] = json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": wrap, "wrapT": wrap}]);
         }
         root
     }

@@ -19,6 +19,7 @@ pub mod gltf;
 pub mod layout;
 pub mod raster;
 pub mod textures;
+mod uvmap;
 
 use crate::btf::Direction;
 use crate::fsutil::{check_not_input, check_target, commit_all, Staged};
@@ -129,6 +130,9 @@ pub fn export(
     for file in output_files(output, binary) {
         check_target(&file, options.overwrite)?;
     }
+    if !options.vertex_colours && crate::synth::patches::output::uv_map_comments(surface).is_some() {
+        return uvmap::export_uv_map(surface, output, binary, options);
+    }
     let (scene, analysis_dir) = open_surface(surface, options.analysis.as_deref(), !options.force_analysis)?;
     // The analysis the map names is an input too: nothing may be written into it.
     for file in output_files(output, binary) {
@@ -162,6 +166,7 @@ pub fn export(
             look: &look,
             maps: &maps,
             options,
+            direct: false,
         };
         let (document, atlas) = job.run(look.provenance(surface, &analysis_dir), &mut seconds, progress)?;
         (document, Some(atlas))
@@ -208,6 +213,9 @@ struct TexturedJob<'a> {
     look: &'a Look<'a>,
     maps: &'a [MapLookup],
     options: &'a ExportOptions,
+    /// The texture coordinates index the sample itself (a texture-mapped result): no
+    /// sample-coordinate map is written.
+    direct: bool,
 }
 
 impl TexturedJob<'_> {
@@ -340,7 +348,7 @@ impl TexturedJob<'_> {
             extras["height"] = json!({"image": image, "min": lo, "max": hi,
                 "encoding": "16-bit grey PNG: height = min + value / 65535 * (max - min)"});
         }
-        if self.look.material.len() > 1 {
+        if self.look.material.len() > 1 && !self.direct {
             let sample = (self.look.material.width(), self.look.material.height());
             let format = self.options.coordinates;
             let image =

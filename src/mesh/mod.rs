@@ -38,7 +38,7 @@ pub mod prepare;
 pub mod remesh;
 pub mod textured;
 pub mod topology;
-mod weld;
+pub(crate) mod weld;
 
 pub use load::{load, load_with, LoadOptions};
 pub use prepare::Soup;
@@ -70,6 +70,16 @@ impl Mesh {
     /// For code in this module that has already established every invariant of `Mesh`.
     pub(crate) fn from_valid_parts(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Mesh {
         Mesh { positions, triangles, normals: None }
+    }
+
+    /// A mesh to render, not to process: it may hold coincident vertices (texture seams
+    /// split apart) and zero-area faces, and keeps the given `normals` (one per vertex).
+    pub(crate) fn from_split_parts(
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        normals: Vec<Vec3>,
+    ) -> Mesh {
+        Mesh { positions, triangles, normals: Some(normals) }
     }
 
     /// Vertex positions.

@@ -36,12 +36,70 @@ pub struct Scene {
     pub labels: Vec<u16>,
     /// One sample texel in model units.
     pub texel: f32,
+    /// A texture-mapped mesh (`synth --method soler2002`): vertices split at texture seams,
+    /// and pixel mode interpolates the corners' sample coordinates across each triangle, as
+    /// a rasteriser does, instead of letting each corner predict from its tangent frame.
+    pub mapped: bool,
 }
 
 impl Scene {
     pub fn from_surface_map(map: SurfaceMap) -> Scene {
         let uv = map.state.uv.iter().map(|&[u, v]| Vec2::new(u as f32, v as f32)).collect();
-        Scene { mesh: map.mesh, frames: map.frames, uv, labels: map.state.labels, texel: map.texel }
+        Scene {
+            mesh: map.mesh,
+            frames: map.frames,
+            uv,
+            labels: map.state.labels,
+            texel: map.texel,
+            mapped: false,
+        }
+    }
+
+    /// A texture-mapped result: one vertex per distinct (vertex, sample coordinate) corner,
+    /// with the normals of the welded surface (smooth across texture seams and across the
+    /// file's own unwelded seams), frames whose s runs along the texture's columns, and the
+    /// level of the cluster that textured each vertex as its label.
+    pub fn from_uv_map(map: &crate::synth::patches::output::UvMap, path: &Path) -> Result<Scene> {
+        let file = &map.mesh;
+        let graph = crate::synth::patches::graph::SurfaceGraph::new(&file.positions, &file.triangles, path)?;
+        let mut index: std::collections::HashMap<(u32, [u32; 2]), u32> = std::collections::HashMap::new();
+        let (mut positions, mut normals, mut uv, mut labels) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut triangles = Vec::with_capacity(file.triangles.len());
+        for (f, t) in file.triangles.iter().enumerate() {
+            let corners: [u32; 3] = std::array::from_fn(|k| {
+                let s = map.corner_uv[f][k];
+                *index.entry((t[k], s.to_array().map(f32::to_bits))).or_insert_with(|| {
+                    positions.push(file.positions[t[k] as usize]);
+                    let at = graph.weld[t[k] as usize];
+                    normals.push(graph.normals.get(at as usize).copied().unwrap_or(Vec3::Z));
+                    uv.push(s);
+                    labels.push(u16::from(map.level[f]));
+                    (uv.len() - 1) as u32
+                })
+            });
+            triangles.push(corners);
+        }
+        // s: the surface direction of increasing texture column, averaged over each vertex's
+        // faces by area (rows run down t, as in surface maps).
+        let mut along = vec![Vec3::ZERO; positions.len()];
+        for t in &triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let [ua, ub, uc] = t.map(|i| uv[i as usize]);
+            let (e1, e2, d1, d2) = (b - a, c - a, ub - ua, uc - ua);
+            let det = d1.x * d2.y - d2.x * d1.y;
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let dp_du = (e1 * d2.y - e2 * d1.y) / det;
+            let weight = 0.5 * e1.cross(e2).length();
+            for &i in t {
+                along[i as usize] += weight * dp_du.normalize_or_zero();
+            }
+        }
+        let mesh = Mesh::from_split_parts(positions, triangles, normals);
+        let frames = Frames::from_directions(mesh.normals().unwrap_or(&[]), &along);
+        Ok(Scene { mesh, frames, uv, labels, texel: map.texel, mapped: true })
     }
 
     /// The vertex normals.
@@ -91,11 +149,14 @@ impl Scene {
     ) -> Vec3 {
         let corners = self.mesh.triangles()[tri];
         let mut c = Vec3::ZERO;
+        let interpolated = (self.mapped && mode == Mode::Pixel)
+            .then(|| (0..3).map(|k| bary[k] * self.uv[corners[k] as usize]).sum::<Vec2>());
         for k in 0..3 {
             let v = corners[k] as usize;
-            let q = match mode {
-                Mode::Vertex => self.uv[v],
-                Mode::Pixel => self.predict_uv(v, p),
+            let q = match (mode, interpolated) {
+                (Mode::Vertex, _) => self.uv[v],
+                (Mode::Pixel, Some(q)) => q,
+                (Mode::Pixel, None) => self.predict_uv(v, p),
             };
             c += bary[k] * material.shade(&blends[v], q.x, q.y);
         }
@@ -128,7 +189,7 @@ impl Scene {
         let n = mesh.vertex_count();
         let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
         let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
-        Ok(Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0 })
+        Ok(Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false })
     }
 }
 
@@ -257,11 +318,22 @@ impl Scene {
 /// names (see [`SurfaceMap::find_analysis`]). With `verify`, the analysis must be the one the
 /// map was synthesized from ([`Error::AnalysisMismatch`] otherwise).
 pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Result<(Scene, PathBuf)> {
-    let map = read_surface_ply(path)?;
+    let (scene, comments) = match crate::synth::patches::output::uv_map_comments(path) {
+        Some(_) => {
+            let map = crate::synth::patches::output::read_uv_map(path)?;
+            (Scene::from_uv_map(&map, path)?, map.comments)
+        }
+        None => {
+            let map = read_surface_ply(path)?;
+            let comments = map.comments.clone();
+            (Scene::from_surface_map(map), comments)
+        }
+    };
+    let comment = |key: &str| crate::synth::surface_map::comment_value(&comments, key);
     let dir = match analysis {
         Some(a) => a.to_path_buf(),
-        None => map.find_analysis(path).ok_or_else(|| {
-            let named = map.comment(ANALYSIS_KEY).unwrap_or("none");
+        None => crate::synth::surface_map::find_analysis(&comments, path).ok_or_else(|| {
+            let named = comment(ANALYSIS_KEY).unwrap_or("none");
             Error::invalid(format!(
                 "{}: its analysis ({named}) is missing, beside the map and at its recorded path; pass --analysis DIR",
                 path.display()
@@ -277,7 +349,7 @@ pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Resul
         )));
     }
     if verify {
-        crate::analysis::store::verify_fingerprint(&dir, path, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
+        crate::analysis::store::verify_fingerprint(&dir, path, comment(ANALYSIS_FINGERPRINT_KEY))?;
     }
-    Ok((Scene::from_surface_map(map), dir))
+    Ok((scene, dir))
 }

@@ -15,6 +15,7 @@ pub mod engine;
 pub(crate) mod flatten;
 pub(crate) mod metric;
 pub mod pass;
+pub mod patches;
 pub mod plane;
 pub mod recipe;
 pub mod round;

@@ -227,7 +227,7 @@ pub fn write_surface_ply(
 /// The analysis directory relative to the directory `ply` is written into (so the pair can
 /// be moved together), and its absolute path (so the map can be moved alone). Falls back to
 /// the path as given where the directories cannot be resolved.
-fn analysis_paths(analysis: &Path, ply: &Path) -> (PathBuf, Option<PathBuf>) {
+pub(crate) fn analysis_paths(analysis: &Path, ply: &Path) -> (PathBuf, Option<PathBuf>) {
     let absolute = std::fs::canonicalize(analysis).ok();
     let ply_dir = match ply.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -254,7 +254,7 @@ pub struct SurfaceMap {
 impl SurfaceMap {
     /// The value of the header comment `KEY value`, if there is one.
     pub fn comment(&self, key: &str) -> Option<&str> {
-        self.comments.iter().find_map(|c| c.strip_prefix(key)?.strip_prefix(' ')).map(str::trim)
+        comment_value(&self.comments, key)
     }
 
     /// The analysis this map was synthesized from, for a map read from `ply`: the header's
@@ -262,17 +262,28 @@ impl SurfaceMap {
     /// `analysis` path as written (maps written before both were recorded named it relative
     /// to the working directory) — the first that holds an `analysis.json`.
     pub fn find_analysis(&self, ply: &Path) -> Option<PathBuf> {
-        let written = self.comment(ANALYSIS_KEY).map(PathBuf::from);
-        let beside = written.as_ref().filter(|w| w.is_relative()).map(|w| match ply.parent() {
-            Some(dir) => dir.join(w),
-            None => w.clone(),
-        });
-        let absolute = self.comment(ANALYSIS_ABSOLUTE_KEY).map(PathBuf::from);
-        [beside, absolute, written]
-            .into_iter()
-            .flatten()
-            .find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
+        find_analysis(&self.comments, ply)
     }
+}
+
+/// The value of the header comment `KEY value` among `comments`, if there is one.
+pub fn comment_value<'a>(comments: &'a [String], key: &str) -> Option<&'a str> {
+    comments.iter().find_map(|c| c.strip_prefix(key)?.strip_prefix(' ')).map(str::trim)
+}
+
+/// The analysis a result read from `ply` names in its `comments` (see
+/// [`SurfaceMap::find_analysis`]; texture-mapped results record it the same way).
+pub fn find_analysis(comments: &[String], ply: &Path) -> Option<PathBuf> {
+    let written = comment_value(comments, ANALYSIS_KEY).map(PathBuf::from);
+    let beside = written.as_ref().filter(|w| w.is_relative()).map(|w| match ply.parent() {
+        Some(dir) => dir.join(w),
+        None => w.clone(),
+    });
+    let absolute = comment_value(comments, ANALYSIS_ABSOLUTE_KEY).map(PathBuf::from);
+    [beside, absolute, written]
+        .into_iter()
+        .flatten()
+        .find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
 }
 
 /// Reads a surface map: the vertex properties by name, faces as triangles.

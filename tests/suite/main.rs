@@ -31,6 +31,7 @@ mod quality;
 mod recipes;
 mod render;
 mod repetition;
+mod soler;
 mod streams;
 mod surface;
 mod synth;

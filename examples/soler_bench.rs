@@ -1,0 +1,161 @@
+//! Hierarchical pattern mapping (`synth --method soler2002`) measured on a photograph and a
+//! mesh: wall time, clusters mapped per level, the flattening of every level's clusters,
+//! and the patch energy of windows across patch borders against windows inside patches,
+//! beside the same patches placed at random.
+//!
+//!   cargo run --release --example soler_bench -- PHOTO MESH [--crop N] [--across K]
+//!       [--threshold T] [--distortion D] [--band B] [--colour lab|hsv|rgb] [--no-relax]
+//!       [--seed S] [--no-baseline]
+//!
+//! The sample is the photograph's top-left N×N crop (default 128), mapped at K sample
+//! widths across the mesh's largest side (default 4).
+
+use btfsynth::btf::image_io::srgb_to_linear;
+use btfsynth::eval::Picture;
+use btfsynth::synth::patches::chart::Flattening;
+use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
+use btfsynth::synth::patches::graph::SurfaceGraph;
+use btfsynth::synth::patches::hierarchy::Hierarchy;
+use btfsynth::synth::patches::quality::{border_discontinuity, seam_quality};
+use btfsynth::synth::patches::{map_mesh, SolerParams};
+use rand::SeedableRng;
+use std::path::Path;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let flag = |name: &str| args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned();
+    let has = |name: &str| args.iter().any(|a| a == name);
+    let (Some(photo), Some(mesh_path)) = (args.first(), args.get(1)) else {
+        eprintln!("usage: soler_bench PHOTO MESH [--crop N] [--across K] [--threshold T] ...");
+        std::process::exit(2);
+    };
+    let crop: usize = flag("--crop").map_or(128, |v| v.parse().expect("--crop N"));
+    let across: f32 = flag("--across").map_or(4.0, |v| v.parse().expect("--across K"));
+    let image = image::open(photo).expect("photo").to_rgb32f();
+    let side = crop.min(image.width() as usize).min(image.height() as usize);
+    let at = |x: usize, y: usize| image.get_pixel(x as u32, y as u32).0;
+    let sample = Picture {
+        width: side,
+        height: side,
+        rgb: (0..side * side).map(|i| at(i % side, i / side)).collect(),
+    };
+    let colour = match flag("--colour").as_deref() {
+        Some("hsv") => ColourSpace::Hsv,
+        Some("rgb") => ColourSpace::Rgb,
+        _ => ColourSpace::Lab,
+    };
+    let fit = FitImage::from_rgb(side, side, |x, y| at(x, y).map(srgb_to_linear), colour, false)
+        .expect("fit image");
+    let path = Path::new(mesh_path);
+    let mesh = btfsynth::mesh::textured::load_textured(path).expect("mesh");
+    let (lo, hi) =
+        mesh.positions.iter().fold(
+            (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
+    let scale = across * side as f32 / (hi - lo).max_element();
+    let defaults = SolerParams::default();
+    let params = SolerParams {
+        texels_per_unit: scale,
+        max_fit_error: flag("--threshold")
+            .map_or(defaults.max_fit_error, |v| v.parse().expect("--threshold")),
+        max_flat_error: flag("--distortion")
+            .map_or(defaults.max_flat_error, |v| v.parse().expect("--distortion")),
+        band: flag("--band").map_or(defaults.band, |v| v.parse().expect("--band")),
+        relax: !has("--no-relax"),
+        seed: flag("--seed").map_or(0, |v| v.parse().expect("--seed")),
+        colour,
+        ..defaults
+    };
+    println!("{} faces, {side}² sample, {scale:.1} texels per unit", mesh.triangles.len());
+
+    // The flattening of every level's clusters.
+    let graph = SurfaceGraph::new(&mesh.positions, &mesh.triangles, path).expect("graph");
+    let h = Hierarchy::build(&graph, &mut rand_chacha::ChaCha8Rng::seed_from_u64(params.seed));
+    let flattening = Flattening::new(&graph, &h);
+    for (l, level) in h.levels.iter().enumerate() {
+        let mut errors = Vec::new();
+        let (mut folds, mut none) = (0, 0);
+        for &c in level {
+            match flattening.chart(&graph, &h, c) {
+                Some(chart) => {
+                    errors.push(chart.flat_error);
+                    folds += usize::from(chart.folds > 0);
+                }
+                None => none += 1,
+            }
+        }
+        errors.sort_by(f32::total_cmp);
+        let q = |f: f32| errors.get(((errors.len() as f32 - 1.0) * f) as usize).copied().unwrap_or(f32::NAN);
+        let faces = level.iter().map(|&c| h.clusters[c as usize].faces.len()).sum::<usize>() as f32
+            / level.len() as f32;
+        println!(
+            "  level {l}: {} clusters ({faces:.1} faces each); flattening error median {:.3}, 90% {:.3}; {folds} fold, {none} without a chart",
+            level.len(),
+            q(0.5),
+            q(0.9)
+        );
+    }
+
+    let run = |matching: bool| {
+        let params = SolerParams { matching, ..params.clone() };
+        let started = Instant::now();
+        let m = map_mesh(
+            &mesh.positions,
+            &mesh.triangles,
+            path,
+            fit.clone(),
+            &params,
+            &btfsynth::progress::Silent,
+        )
+        .expect("mapped");
+        let seconds = started.elapsed().as_secs_f64();
+        let q = seam_quality(
+            &mesh.positions,
+            &mesh.triangles,
+            &m.corner_uv,
+            &m.cluster,
+            &sample,
+            false,
+            scale,
+            (3000, 1),
+        )
+        .expect("measured");
+        let (jump, n) =
+            border_discontinuity(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit)
+                .expect("measured");
+        println!("  border discontinuity {:.3} of a random pair's over {} points", jump, n);
+        (m, q, seconds)
+    };
+    let (m, q, seconds) = run(true);
+    println!(
+        "matched: {seconds:.2} s wall (hierarchy, flattening, transforms, mapping: {:.2?})",
+        m.report.seconds
+    );
+    for l in m.report.levels.iter().filter(|l| l.tried > 0) {
+        println!(
+            "  level {}: {} to cover, {} mapped ({} at random, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
+            l.level, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
+        );
+    }
+    println!(
+        "  seams: border {:.5} ({} windows), interior {:.5} ({} windows), ratio {:.2}",
+        q.border,
+        q.border_windows,
+        q.interior,
+        q.interior_windows,
+        q.border / q.interior
+    );
+    if !has("--no-baseline") {
+        let (_, r, _) = run(false);
+        println!(
+            "random:  border {:.5} ({} windows), interior {:.5} ({} windows), ratio {:.2}",
+            r.border,
+            r.border_windows,
+            r.interior,
+            r.interior_windows,
+            r.border / r.interior
+        );
+    }
+}

@@ -1,0 +1,213 @@
+//! `btfsynth synth ANALYSIS MESH --method soler2002`: hierarchical pattern mapping (Soler,
+//! Cani and Angelidis 2002), texture coordinates into the sample on the user's own mesh.
+
+use super::progress::Bars;
+use super::usage;
+use crate::analysis::images::SampleImages;
+use crate::fsutil::{commit_all, Staged};
+use crate::synth::patches::fit::{ColourSpace, FitImage};
+use crate::synth::patches::output::{write_uv_map, Provenance};
+use crate::synth::patches::{map_mesh, SolerParams};
+use anyhow::{Context, Result};
+use std::path::Path;
+use std::time::Instant;
+
+/// How `synth` puts the sample on the mesh.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// The per-vertex engine (its recipe from --preset): a texton map synthesized on a
+    /// remeshed copy of the mesh.
+    #[default]
+    Vertex,
+    /// Soler, Cani and Angelidis 2002, hierarchical pattern mapping: patches of the sample
+    /// itself mapped onto the mesh as it is (no remesh, no new texture); the output is the
+    /// mesh with texture coordinates at every face corner (.ply or .obj).
+    Soler2002,
+}
+
+/// The space colours are matched in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ColourArg {
+    /// CIE L*a*b*.
+    Lab,
+    /// HSV, the paper's.
+    Hsv,
+    /// Linear RGB.
+    Rgb,
+    /// The analysis' appearance vectors (for a BTF stack: every image's texel at once).
+    Appearance,
+}
+
+#[derive(clap::Args, Debug)]
+#[command(next_help_heading = "Hierarchical pattern mapping (--method soler2002)")]
+pub struct SolerArgs {
+    /// Rotations of the sample tried for every patch (evenly spaced; the paper's 19).
+    #[arg(long, default_value_t = 19, value_parser = super::at_least(1))]
+    rotations: usize,
+    /// Width of the band of textured neighbours a patch is matched against, in texels.
+    #[arg(long, default_value_t = 6.0, value_parser = super::positive_number)]
+    band: f32,
+    /// Largest flattening error |r − 1| of one patch (r: surface over flattened area);
+    /// a cluster above it is split into smaller ones.
+    #[arg(long, default_value_t = 0.1, value_parser = super::positive_number)]
+    max_distortion: f32,
+    /// Largest fitting error of one patch, as a fraction of a random placement's; a
+    /// cluster above it is split. Lower: smaller patches, fainter seams.
+    #[arg(long, default_value_t = 0.3, value_parser = super::positive_number)]
+    fit_threshold: f32,
+    /// The space colours are matched in.
+    #[arg(long, value_enum, default_value_t = ColourArg::Lab)]
+    colour_space: ColourArg,
+    /// Do not relax texture coordinates along patch borders after each fit.
+    #[arg(long)]
+    no_relax: bool,
+}
+
+/// The `synth` arguments the method uses.
+pub struct Common<'a> {
+    pub analysis: &'a Path,
+    pub mesh: &'a Path,
+    /// The output, reserved under a temporary name.
+    pub output: Staged,
+    pub scale: Option<f32>,
+    pub texels_across: Option<f32>,
+    pub seed: u64,
+    pub report: Option<Staged>,
+}
+
+pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
+    let output = common.output.target().to_path_buf();
+    let output = output.as_path();
+    let ext = output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if ext != "ply" && ext != "obj" {
+        return Err(usage(format!("-o {}: --method soler2002 writes a .ply or .obj mesh", output.display())));
+    }
+    let started = Instant::now();
+    let manifest = crate::analysis::store::read_manifest(common.analysis)?;
+    let tileable = manifest.params.tileable;
+    let images = SampleImages::open(common.analysis)?;
+    // The sample as seen head-on (a photograph's only image).
+    let shown = images.default_probes()[0].image;
+    let (w, h) = (images.width, images.height);
+    let colour = match args.colour_space {
+        ColourArg::Lab | ColourArg::Appearance => ColourSpace::Lab,
+        ColourArg::Hsv => ColourSpace::Hsv,
+        ColourArg::Rgb => ColourSpace::Rgb,
+    };
+    let sample = match args.colour_space {
+        ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
+        _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
+    };
+    let mesh = crate::mesh::textured::load_textured(common.mesh)?;
+    let texels_per_unit = match (common.scale, common.texels_across) {
+        (Some(s), _) => s,
+        (None, across) => {
+            let (lo, hi) = crate::mesh::bounds_of(&mesh.positions);
+            let side = (hi - lo).max_element();
+            // NaN fails too: a mesh without finite extent.
+            if side.is_nan() || side <= 0.0 {
+                return Err(usage(format!(
+                    "{}: the mesh has no extent to scale a texture to",
+                    common.mesh.display()
+                )));
+            }
+            across.unwrap_or(4.0 * w as f32) / side
+        }
+    };
+    let params = SolerParams {
+        texels_per_unit,
+        rotations: args.rotations,
+        band: args.band,
+        max_flat_error: args.max_distortion,
+        max_fit_error: args.fit_threshold,
+        colour,
+        relax: !args.no_relax,
+        matching: true,
+        seed: common.seed,
+    };
+    params.validate().map_err(usage)?;
+    let result = map_mesh(&mesh.positions, &mesh.triangles, common.mesh, sample, &params, bars)?;
+    let colour_name = format!("{:?}", args.colour_space).to_lowercase();
+    let mut params_json = serde_json::json!({
+        "method": "soler2002", "texels_per_unit": texels_per_unit, "rotations": params.rotations,
+        "band": params.band, "max_distortion": params.max_flat_error, "fit_threshold": params.max_fit_error,
+        "colour_space": colour_name, "relax": params.relax, "seed": params.seed, "image": shown,
+    });
+    let provenance = Provenance {
+        analysis: common.analysis,
+        mesh: common.mesh,
+        sample: (w, h),
+        tileable,
+        texel: 1.0 / texels_per_unit,
+        params: params_json.clone(),
+    };
+    write_uv_map((output, common.output.path()), &mesh.positions, &mesh.triangles, &result, &provenance)
+        .with_context(|| format!("writing {}", output.display()))?;
+    let report = &result.report;
+    let [hierarchy, flattening, transforms, mapping] = report.seconds;
+    eprintln!(
+        "  {} faces ({} without area, carried), {} clusters on {} levels; hierarchy {hierarchy:.2} s, \
+         flattening {flattening:.2} s, {} rotations of the {w}x{h} sample {transforms:.2} s, mapping {mapping:.2} s",
+        report.faces,
+        report.carried_faces,
+        report.clusters,
+        report.levels.len(),
+        params.rotations
+    );
+    for l in report.levels.iter().filter(|l| l.tried > 0) {
+        eprintln!(
+            "  level {}: {} clusters, {} to cover, {} mapped ({} started at random, {} faces); \
+             split: {} not discs, {} distorted, {} too large, {} poor fits, {} unreached; {:.2} s",
+            l.level,
+            l.clusters,
+            l.tried,
+            l.mapped,
+            l.started,
+            l.faces,
+            l.not_disc,
+            l.distorted,
+            l.too_large,
+            l.poor_fit,
+            l.unreached,
+            l.seconds
+        );
+    }
+    let mut outputs = vec![common.output];
+    if let Some(staged) = common.report {
+        params_json["seconds"] = serde_json::json!(report.seconds);
+        let json = serde_json::json!({"params": params_json, "faces": report.faces, "carried_faces": report.carried_faces,
+            "clusters": report.clusters, "levels": report.levels, "seconds": started.elapsed().as_secs_f64()});
+        std::fs::write(staged.path(), serde_json::to_string_pretty(&json)?)
+            .map_err(|e| crate::Error::io(staged.target(), e))?;
+        outputs.push(staged);
+    }
+    let committed = commit_all(outputs)?;
+    eprintln!(
+        "wrote {} ({} faces of the original mesh, {:.1} texels per unit) in {:.1} s",
+        committed[0].display(),
+        mesh.triangles.len(),
+        texels_per_unit,
+        started.elapsed().as_secs_f64()
+    );
+    if let Some(report) = committed.get(1) {
+        eprintln!("wrote {}", report.display());
+    }
+    Ok(())
+}
+
+/// The analysis' finest appearance vectors (at most 8 dimensions) as the fitting image.
+fn appearance_image(analysis: &Path, tileable: bool) -> Result<FitImage> {
+    let sample = crate::synth::Sample::open(analysis, 1)?;
+    let level = &sample.levels[0];
+    let map = level.appearance.as_ref().ok_or_else(|| {
+        usage(format!("{}: this analysis has no appearance vectors (re-run analyze)", analysis.display()))
+    })?;
+    let dims = map.dims.min(8);
+    let mut values = Vec::with_capacity(level.width * level.height * dims);
+    for y in 0..level.height as i64 {
+        for x in 0..level.width as i64 {
+            values.extend_from_slice(&map.at(x, y)[..dims]);
+        }
+    }
+    Ok(FitImage::new(level.width, level.height, dims, values, tileable)?)
+}

@@ -1,0 +1,268 @@
+//! Hierarchical pattern mapping (Soler, Cani and Angelidis, *Hierarchical Pattern Mapping*,
+//! SIGGRAPH 2002): texture coordinates into the sample itself, at the corners of the user's
+//! own mesh. Nothing is remeshed and no texture is made: patches of the sample, of many
+//! sizes and orientations, are placed on the surface from coarse to fine so that each
+//! matches its textured neighbours.
+//!
+//! - [`graph`]: the file's triangles joined where their corners coincide; non-manifold
+//!   input is refused.
+//! - [`hierarchy`]: the face-cluster hierarchy (§3.1), discs down to single faces.
+//! - [`chart`]: control polygons and recursive barycentric coordinates (§3.2, Eq. 1).
+//! - [`fit`]: mask fitting by FFT correlation over rotations of the sample (§4.2).
+//! - [`mapping`]: the coarse-to-fine priority queue (§2.2) and the masks (§4.1);
+//!   [`relax`]: the relaxation along borders (§4.4).
+//! - [`output`]: the result as a PLY (or OBJ) with per-corner texture coordinates, and
+//!   reading it back for `render` and `export`.
+//!
+//! ```no_run
+//! use btfsynth::synth::patches::{self, fit::{ColourSpace, FitImage}, SolerParams};
+//! use btfsynth::mesh::textured::load_textured;
+//! use std::path::Path;
+//!
+//! let path = Path::new("bunny.obj");
+//! let mesh = load_textured(path)?;
+//! let photo = image::open("pebbles.png").unwrap().to_rgb32f();
+//! let (w, h) = photo.dimensions();
+//! let sample = FitImage::from_rgb(w as usize, h as usize, |x, y| photo.get_pixel(x as u32, y as u32).0, ColourSpace::Lab, false)?;
+//! let params = SolerParams { texels_per_unit: 400.0, ..SolerParams::default() };
+//! let result = patches::map_mesh(&mesh.positions, &mesh.triangles, path, sample, &params, &btfsynth::progress::Silent)?;
+//! println!("{} faces mapped, {} levels", result.corner_uv.len(), result.report.levels.len());
+//! # Ok::<(), btfsynth::Error>(())
+//! ```
+
+pub mod chart;
+pub mod fit;
+pub mod graph;
+pub mod hierarchy;
+pub mod mapper;
+pub mod mapping;
+pub mod output;
+pub mod quality;
+pub mod relax;
+
+use crate::progress::Progress;
+use crate::{Error, Result};
+use fit::{ColourSpace, FitImage, Fitter};
+use glam::{Vec2, Vec3};
+use graph::{SurfaceGraph, NONE};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+use std::time::Instant;
+
+/// The method's parameters.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SolerParams {
+    /// Sample texels per model unit: the texture's size on the surface (no default that fits
+    /// every mesh; the CLI derives one from the mesh's size).
+    pub texels_per_unit: f32,
+    /// Rotations of the sample tried per fit (default 19, the paper's).
+    pub rotations: usize,
+    /// Width of the mask's band along textured borders, in texels (default 6). Wider bands
+    /// carry a pattern's orientation further (the paper widens them for anisotropic ones)
+    /// and cost nothing extra per fit.
+    pub band: f32,
+    /// Largest flattening error |r − 1| a cluster may have and be mapped as one patch
+    /// (default 0.1: about 10% more area on the surface than in the sample).
+    pub max_flat_error: f32,
+    /// Largest fitting error a cluster may have and be mapped as one patch, as a fraction of
+    /// the error of a random placement (default 0.3). Lower: more, smaller patches with
+    /// fainter seams; higher: larger patches, more visible seams.
+    pub max_fit_error: f32,
+    /// The colour space masks are compared in (default L*a*b*; the paper's is HSV).
+    pub colour: ColourSpace,
+    /// Relax the coordinates along textured borders after each fit (§4.4; default on).
+    pub relax: bool,
+    /// Match each patch to its neighbours (default on). Off, every patch is placed at
+    /// random where it fits: the baseline that measures what matching buys.
+    pub matching: bool,
+    /// Seed of every random choice (default 0).
+    pub seed: u64,
+}
+
+impl Default for SolerParams {
+    fn default() -> Self {
+        SolerParams {
+            texels_per_unit: 100.0,
+            rotations: 19,
+            band: 6.0,
+            max_flat_error: 0.1,
+            max_fit_error: 0.3,
+            colour: ColourSpace::Lab,
+            relax: true,
+            matching: true,
+            seed: 0,
+        }
+    }
+}
+
+impl SolerParams {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<()> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !positive(self.texels_per_unit) {
+            return Err(Error::invalid(format!("the scale must be positive, got {}", self.texels_per_unit)));
+        }
+        if !(1..=90).contains(&self.rotations) {
+            return Err(Error::invalid(format!("--rotations {}: between 1 and 90", self.rotations)));
+        }
+        if !positive(self.band) || self.band > 64.0 {
+            return Err(Error::invalid(format!("--band {}: between 0 and 64 texels", self.band)));
+        }
+        if !positive(self.max_flat_error) || !positive(self.max_fit_error) {
+            return Err(Error::invalid("the flattening and fitting thresholds must be positive"));
+        }
+        Ok(())
+    }
+}
+
+/// What happened on one level of the hierarchy.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct LevelReport {
+    pub level: usize,
+    /// Clusters on the level.
+    pub clusters: usize,
+    /// Clusters the level had to cover (the children of those the level above gave up).
+    pub tried: usize,
+    /// Mapped as one patch.
+    pub mapped: usize,
+    /// Of those, placed at random (no textured neighbour: a start).
+    pub started: usize,
+    /// Faces mapped on this level.
+    pub faces: usize,
+    /// Given up: not a disc or without a simple control polygon / too distorted flattened /
+    /// larger than the sample allows / fitting error over the threshold / no textured
+    /// neighbour on a piece of the surface already started (left to the next level).
+    pub not_disc: usize,
+    pub distorted: usize,
+    pub too_large: usize,
+    pub poor_fit: usize,
+    pub unreached: usize,
+    /// Median fitting error of the level's fits, as a fraction of a random placement's
+    /// (NaN without fits).
+    pub median_fit_error: f32,
+    pub seconds: f64,
+}
+
+/// The whole run.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Report {
+    pub levels: Vec<LevelReport>,
+    /// Seconds: hierarchy, flattening (polygons and coordinates), sample transforms, mapping.
+    pub seconds: [f64; 4],
+    pub faces: usize,
+    /// Faces without area in the graph, given their neighbours' coordinates.
+    pub carried_faces: usize,
+    pub clusters: usize,
+}
+
+/// The result on the file's own faces.
+#[derive(Clone, Debug)]
+pub struct PatchMapping {
+    /// Per file face, per corner (in the file's order), the sample coordinate (texels,
+    /// texel centres at integers, x along columns, y down rows).
+    pub corner_uv: Vec<[Vec2; 3]>,
+    /// Per file face, the cluster that textured it.
+    pub cluster: Vec<u32>,
+    /// Per file face, that cluster's level.
+    pub level: Vec<u8>,
+    pub report: Report,
+}
+
+/// Maps `sample` onto the triangles of a file (`path`, named in errors): see the module
+/// documentation.
+pub fn map_mesh(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    path: &Path,
+    sample: FitImage,
+    params: &SolerParams,
+    progress: &dyn Progress,
+) -> Result<PatchMapping> {
+    params.validate()?;
+    let mut seconds = [0.0; 4];
+    let started = Instant::now();
+    let graph = SurfaceGraph::new(positions, triangles, path)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+    let hierarchy = hierarchy::Hierarchy::build(&graph, &mut rng);
+    seconds[0] = started.elapsed().as_secs_f64();
+    let started = Instant::now();
+    let flattening = chart::Flattening::new(&graph, &hierarchy);
+    seconds[1] = started.elapsed().as_secs_f64();
+    let started = Instant::now();
+    let fitter = Fitter::new(sample, params.rotations)?;
+    seconds[2] = started.elapsed().as_secs_f64();
+    let started = Instant::now();
+    let mapper = mapper::Mapper {
+        graph: &graph,
+        hierarchy: &hierarchy,
+        flattening: &flattening,
+        fitter: &fitter,
+        params,
+    };
+    let (mapping, levels) = mapper.run(&mut rng, progress)?;
+    seconds[3] = started.elapsed().as_secs_f64();
+    let (corner_uv, cluster) = on_file_faces(&graph, &mapping, triangles);
+    let level = cluster
+        .iter()
+        .map(|&c| if c == NONE { 0 } else { hierarchy.clusters[c as usize].level.min(255) as u8 })
+        .collect();
+    let report = Report {
+        levels,
+        seconds,
+        faces: triangles.len(),
+        carried_faces: triangles.len() - graph.face_count(),
+        clusters: hierarchy.clusters.len(),
+    };
+    Ok(PatchMapping { corner_uv, cluster, level, report })
+}
+
+/// The graph faces' coordinates on the file's faces, in the file's corner order; a face
+/// without area takes, per corner, the coordinate its vertex has in the graph face that
+/// shares most of its corners (else in any face around the vertex).
+fn on_file_faces(
+    graph: &SurfaceGraph,
+    mapping: &mapper::Mapping,
+    triangles: &[[u32; 3]],
+) -> (Vec<[Vec2; 3]>, Vec<u32>) {
+    let faces = triangles.len();
+    let mut uv = vec![[Vec2::ZERO; 3]; faces];
+    let mut cluster = vec![NONE; faces];
+    for (f, &g) in graph.graph_face.iter().enumerate() {
+        if g == NONE {
+            continue;
+        }
+        let order = graph.file_corner[g as usize];
+        for k in 0..3 {
+            uv[f][order[k] as usize] = mapping.face_uv[g as usize][k];
+        }
+        cluster[f] = mapping.mapped_by[g as usize];
+    }
+    for (f, &g) in graph.graph_face.iter().enumerate() {
+        if g != NONE {
+            continue;
+        }
+        // The welded corners of the file face.
+        let corners = triangles[f].map(|i| graph.weld[i as usize]);
+        let host = corners
+            .iter()
+            .filter(|&&v| v != NONE)
+            .flat_map(|&v| graph.faces_of(v).iter().copied())
+            .max_by_key(|&h| {
+                (corners.iter().filter(|&&v| graph.corner_of(h, v).is_some()).count(), std::cmp::Reverse(h))
+            });
+        for k in 0..3 {
+            let v = corners[k];
+            if v == NONE {
+                continue;
+            }
+            let in_host = host.and_then(|h| graph.corner_of(h, v).map(|i| (h, i)));
+            let any = graph.faces_of(v).first().map(|&h| (h, graph.corner_of(h, v).unwrap_or(0)));
+            if let Some((h, i)) = in_host.or(any) {
+                uv[f][k] = mapping.face_uv[h as usize][i];
+            }
+        }
+        cluster[f] = host.map_or(NONE, |h| mapping.mapped_by[h as usize]);
+    }
+    (uv, cluster)
+}
