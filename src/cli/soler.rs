@@ -3,12 +3,12 @@
 
 use super::progress::Bars;
 use super::usage;
-use crate::analysis::images::SampleImages;
-use crate::fsutil::{commit_all, Staged};
-use crate::synth::patches::fit::{ColourSpace, FitImage};
-use crate::synth::patches::output::{write_uv_map, Provenance};
-use crate::synth::patches::{map_mesh, SolerParams};
 use anyhow::{Context, Result};
+use btfsynth::analysis::images::SampleImages;
+use btfsynth::fsutil::{commit_all, Staged};
+use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
+use btfsynth::synth::patches::output::{write_uv_map, Provenance};
+use btfsynth::synth::patches::{map_mesh, SolerParams};
 use std::path::Path;
 use std::time::Instant;
 
@@ -83,7 +83,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         return Err(usage(format!("-o {}: --method soler2002 writes a .ply or .obj mesh", output.display())));
     }
     let started = Instant::now();
-    let manifest = crate::analysis::store::read_manifest(common.analysis)?;
+    let manifest = btfsynth::analysis::store::read_manifest(common.analysis)?;
     let tileable = manifest.params.tileable;
     let images = SampleImages::open(common.analysis)?;
     // The sample as seen head-on (a photograph's only image).
@@ -98,11 +98,11 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
         _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
     };
-    let mesh = crate::mesh::textured::load_textured(common.mesh)?;
+    let mesh = btfsynth::mesh::textured::load_textured(common.mesh)?;
     let texels_per_unit = match (common.scale, common.texels_across) {
         (Some(s), _) => s,
         (None, across) => {
-            let (lo, hi) = crate::mesh::bounds_of(&mesh.positions);
+            let (lo, hi) = btfsynth::mesh::bounds_of(&mesh.positions);
             let side = (hi - lo).max_element();
             // NaN fails too: a mesh without finite extent.
             if side.is_nan() || side <= 0.0 {
@@ -178,7 +178,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         let json = serde_json::json!({"params": params_json, "faces": report.faces, "carried_faces": report.carried_faces,
             "clusters": report.clusters, "levels": report.levels, "seconds": started.elapsed().as_secs_f64()});
         std::fs::write(staged.path(), serde_json::to_string_pretty(&json)?)
-            .map_err(|e| crate::Error::io(staged.target(), e))?;
+            .map_err(|e| btfsynth::Error::io(staged.target(), e))?;
         outputs.push(staged);
     }
     let committed = commit_all(outputs)?;
@@ -197,7 +197,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
 
 /// The analysis' finest appearance vectors (at most 8 dimensions) as the fitting image.
 fn appearance_image(analysis: &Path, tileable: bool) -> Result<FitImage> {
-    let sample = crate::synth::Sample::open(analysis, 1)?;
+    let sample = btfsynth::synth::Sample::open(analysis, 1)?;
     let level = &sample.levels[0];
     let map = level.appearance.as_ref().ok_or_else(|| {
         usage(format!("{}: this analysis has no appearance vectors (re-run analyze)", analysis.display()))

@@ -157,7 +157,7 @@ impl Mesh {
 }
 
 /// Axis-aligned bounds of a point set; `(+inf, -inf)` for an empty one.
-pub(crate) fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
+pub fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
     points.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), &p| {
         (lo.min(p), hi.max(p))
     })
