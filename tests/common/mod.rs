@@ -109,3 +109,11 @@ pub fn write_recipe(path: &Path, preset: &btfsynth::synth::Preset) -> std::path:
     std::fs::write(path, serde_json::to_string_pretty(&preset.to_json()).unwrap()).unwrap();
     path.to_path_buf()
 }
+
+/// Whether `preset` selects by Castellanos and Williams' use penalty (sampling without
+/// replacement, texel by texel): its results keep the sample's statistics but not its exact
+/// patches, so the checks that need a verbatim reproduction, or a result smooth enough for
+/// a repeated plane's seam to stand out, do not apply to it (docs/castellanos.md).
+pub fn samples_without_replacement(preset: &btfsynth::synth::Preset) -> bool {
+    preset.all_passes().any(|p| matches!(p.select, btfsynth::synth::Select::UsePenalty { .. }))
+}
