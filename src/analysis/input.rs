@@ -228,9 +228,9 @@ fn streamed_info(stack: &LowRankStack, nonlinearity: Option<String>) -> BasisInf
 /// linear (see the module notes); `None` where it is not.
 ///
 /// With RGB = M·v + t (the colour model) and the image's scale s: image a at texel p is
-/// s_a (Σ_c M[·][c] Σ_k A_c[a][k] B_c[p][k] + t), so the rows are the texel factors
-/// spread over the colours (M[·][c] B_c[·][k]) plus one row holding t, and image a's
-/// coordinates are s_a A_c[a][·] and s_a.
+/// `s_a (Σ_c M[·][c] Σ_k A_c[a][k] B_c[p][k] + t)`, so the rows are the texel factors
+/// spread over the colours (`M[·][c] B_c[·][k]`) plus one row holding t, and image a's
+/// coordinates are `s_a A_c[a][·]` and `s_a`.
 pub fn factor_basis(f: &FactoredStack) -> Option<LowRankStack> {
     if f.log_encoded {
         return None;

@@ -21,7 +21,7 @@
 //! |---|---|---|
 //! | `sample_image_factors.npy` | f32 | [3, n, K] per channel, zero-padded to the largest K |
 //! | `sample_texel_factors.npy` | f32 | [3, h, w, K] |
-//! | `sample_scale.npy` | f32 | [n] per-image scale after decoding |
+//! | `sample_scale.npy` | f32 | \[n\] per-image scale after decoding |
 
 use super::npy;
 use super::pipeline::Analysis;
@@ -66,7 +66,7 @@ pub struct Manifest {
 }
 
 /// A sample stored as factors (see the module notes): channel c of image i at texel p is
-/// Σₖ image[c][i][k] · texel[c][p][k], decoded by the colour model, then exp(x) − ε when
+/// `Σₖ image[c][i][k] · texel[c][p][k]`, decoded by the colour model, then exp(x) − ε when
 /// `log_encoded`, then times the image's scale.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SampleInfo {

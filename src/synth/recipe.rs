@@ -103,7 +103,7 @@ pub enum Select {
     /// texels the level leans on too often lose, which keeps the first-order statistics.
     Choosy { strength: f32 },
     /// Castellanos and Williams' choosy sampling as written (§3.11, Algorithm 2): the
-    /// distance is multiplied by `base`^(c[j] − c_min), c[j] being how many times texel j was
+    /// distance is multiplied by `base`^(c_j − c_min), c_j being how many times texel j was
     /// chosen so far in this pass (every visit's choice counts, kept or not) and c_min the
     /// least count over the level's candidate texels. The paper's base is 2: a soft
     /// sampling without replacement, so the output's colour histogram follows the sample's.

@@ -32,13 +32,13 @@ pub struct SurfaceGraph {
     pub file_vertex: Vec<u32>,
     /// Per graph face, the file face it is.
     pub file_face: Vec<u32>,
-    /// Per file face, its graph face, or [`NONE`] for a face without area in the graph.
+    /// Per file face, its graph face, or `NONE` for a face without area in the graph.
     pub graph_face: Vec<u32>,
     /// Per graph face, its three vertices counter-clockwise (consistently oriented).
     pub corners: Vec<[u32; 3]>,
     /// Per graph face, which corner of the file's face each of its corners is.
     pub file_corner: Vec<[u8; 3]>,
-    /// Per graph face, the face across edge k (corners k → k + 1), or [`NONE`].
+    /// Per graph face, the face across edge k (corners k → k + 1), or `NONE`.
     pub across: Vec<[u32; 3]>,
     /// Per graph face, its area and unit normal (zero for a zero-area face).
     pub area: Vec<f32>,

@@ -30,7 +30,7 @@ pub const BRANCHING: f64 = 4.0;
 #[derive(Clone, Debug)]
 pub struct Cluster {
     pub level: u32,
-    /// The cluster of the level above, or [`NONE`] on level 0.
+    /// The cluster of the level above, or `NONE` on level 0.
     pub parent: u32,
     /// Its sub-clusters on the next level (none for a single face).
     pub children: Vec<u32>,

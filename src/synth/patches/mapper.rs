@@ -13,7 +13,7 @@ use std::collections::HashSet;
 /// The texture on the graph's faces.
 #[derive(Clone, Debug)]
 pub struct Mapping {
-    /// Per graph face, the cluster that textured it ([`NONE`] until one does).
+    /// Per graph face, the cluster that textured it (`NONE` until one does).
     pub mapped_by: Vec<u32>,
     /// Per graph face, the sample coordinate (texels, centres at integers) of each corner.
     pub face_uv: Vec<[Vec2; 3]>,
