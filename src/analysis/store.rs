@@ -546,6 +546,14 @@ pub fn verify_levels(dir: &Path, manifest: &Manifest, levels: usize) -> Result<(
 
 /// Reads `analysis.json` of an analysis directory.
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
+    // A photo or stack file given where an analysis goes would otherwise read as the
+    // system's "Not a directory" on `FILE/analysis.json`.
+    if dir.is_file() {
+        return Err(Error::format(
+            dir,
+            "a file, not an analysis directory (make one with `btfsynth analyze FILE -o DIR`)",
+        ));
+    }
     let path = dir.join(MANIFEST);
     let text = crate::fsutil::read_input_text(&path)?;
     let manifest: Manifest = serde_json::from_str(&text)

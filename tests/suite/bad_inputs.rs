@@ -351,3 +351,15 @@ fn converting_an_incomplete_stack_to_a_btf_file_names_the_stack() {
     assert_one_line_error(&r, "stack: a DFMF file needs every view × light pair: this stack has 3 images");
     assert!(!out.exists(), "nothing written");
 }
+
+/// A photo given where an analysis goes (a new user's first guess) is named as a file that
+/// is not an analysis, with the command that makes one; nothing is written.
+#[test]
+fn a_photo_in_place_of_an_analysis() {
+    let dir = tempfile::tempdir().unwrap();
+    let photo = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
+    let out = dir.path().join("plane");
+    let r = btfsynth(&["synth", photo, "--plane", "32x32", "-o", out.to_str().unwrap()]);
+    assert_one_line_error(&r, "not an analysis directory (make one with `btfsynth analyze");
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+}
