@@ -18,6 +18,7 @@
 //!   neighbourhood on the coarser level, of size [`parent_size`].
 
 use rayon::prelude::*;
+use std::collections::BinaryHeap;
 
 /// Levels with at most this many pixels (64 × 64) are searched exhaustively.
 pub const EXHAUSTIVE_LIMIT: usize = 64 * 64;
@@ -68,56 +69,118 @@ pub fn parent_size(neighborhood: usize) -> usize {
 
 /// The k-lists of `pyramid[level]` with single-level neighbourhoods, `[pixels][k]`.
 pub fn single_level_lists(pyramid: &[Level], level: usize, params: &KnnParams) -> Vec<u32> {
-    let fine = Features::new(&[(pyramid[level], params.neighborhood)], params.tileable);
-    lists(pyramid, level, &fine, params)
+    PyramidSearch::new(pyramid, *params).single_level(level)
 }
 
 /// The k-lists of `pyramid[level]` with two-level neighbourhoods (this level plus the
 /// parent's on `level + 1`), `[pixels][k]`. `level + 1` must exist.
 pub fn two_level_lists(pyramid: &[Level], level: usize, params: &KnnParams) -> Vec<u32> {
-    let parts =
-        [(pyramid[level], params.neighborhood), (pyramid[level + 1], parent_size(params.neighborhood))];
-    let features = Features::new(&parts, params.tileable);
-    lists(pyramid, level, &features, params)
+    PyramidSearch::new(pyramid, *params).two_level(level)
 }
 
-fn lists(pyramid: &[Level], level: usize, features: &Features, params: &KnnParams) -> Vec<u32> {
-    let map = pyramid[level].map;
-    let count = params.k.saturating_sub(1);
-    let pixels = map.width * map.height;
-    let coarse = (pixels > EXHAUSTIVE_LIMIT && level + 1 < pyramid.len()).then(|| {
-        let coarse_features = Features::new(&[(pyramid[level + 1], params.neighborhood)], params.tileable);
-        let m = KnnParams { k: COARSE_CANDIDATES + 1, ..*params };
-        lists(pyramid, level + 1, &coarse_features, &m)
-    });
-    let all: Vec<u32> = (0..pixels as u32).filter(|&b| features.eligible[b as usize]).collect();
-    (0..pixels)
-        .into_par_iter()
-        .flat_map_iter(|a| {
-            let nearest = match &coarse {
-                Some(parent_lists) => {
-                    let cands = children_of_parent_candidates(
-                        map,
-                        pyramid[level + 1].map,
-                        parent_lists,
-                        a,
-                        COARSE_CANDIDATES + 1,
-                    );
-                    features.nearest(a, cands.into_iter(), count, map, params.tileable)
+/// The lists of every level of one pyramid. A large level's candidates are its parent's
+/// [`COARSE_CANDIDATES`]-lists on the next coarser level, which the single- and two-level
+/// lists of that level and of its own parent all read: kept here, each is searched once
+/// (at 512² the coarsest level's exhaustive search was otherwise run five times).
+pub struct PyramidSearch<'a> {
+    pyramid: &'a [Level<'a>],
+    params: KnnParams,
+    /// Per level, its single-level lists of `COARSE_CANDIDATES + 1` entries, once made.
+    candidate_lists: Vec<Option<Vec<u32>>>,
+}
+
+impl<'a> PyramidSearch<'a> {
+    pub fn new(pyramid: &'a [Level<'a>], params: KnnParams) -> Self {
+        PyramidSearch { pyramid, params, candidate_lists: vec![None; pyramid.len()] }
+    }
+
+    /// The k-lists of `level` with single-level neighbourhoods, `[pixels][k]`.
+    pub fn single_level(&mut self, level: usize) -> Vec<u32> {
+        let k = self.params.k;
+        if self.supplies_candidates(level) && k <= COARSE_CANDIDATES + 1 {
+            // The nearest k of a list ordered by (distance, index) are its first k.
+            return self
+                .candidates(level)
+                .chunks(COARSE_CANDIDATES + 1)
+                .flat_map(|l| &l[..k])
+                .copied()
+                .collect();
+        }
+        let features =
+            Features::new(&[(self.pyramid[level], self.params.neighborhood)], self.params.tileable);
+        self.lists(level, &features, k)
+    }
+
+    /// The k-lists of `level` with two-level neighbourhoods (this level plus the parent's on
+    /// `level + 1`), `[pixels][k]`. `level + 1` must exist.
+    pub fn two_level(&mut self, level: usize) -> Vec<u32> {
+        let n = self.params.neighborhood;
+        let parts = [(self.pyramid[level], n), (self.pyramid[level + 1], parent_size(n))];
+        let features = Features::new(&parts, self.params.tileable);
+        self.lists(level, &features, self.params.k)
+    }
+
+    /// Whether the next finer level takes its candidates from this one's lists.
+    fn supplies_candidates(&self, level: usize) -> bool {
+        level > 0 && self.searched_through_parent(level - 1)
+    }
+
+    fn searched_through_parent(&self, level: usize) -> bool {
+        let map = self.pyramid[level].map;
+        map.width * map.height > EXHAUSTIVE_LIMIT && level + 1 < self.pyramid.len()
+    }
+
+    /// `level`'s single-level lists of `COARSE_CANDIDATES + 1` entries, searched on first use.
+    fn candidates(&mut self, level: usize) -> &[u32] {
+        if self.candidate_lists[level].is_none() {
+            let features =
+                Features::new(&[(self.pyramid[level], self.params.neighborhood)], self.params.tileable);
+            let lists = self.lists(level, &features, COARSE_CANDIDATES + 1);
+            self.candidate_lists[level] = Some(lists);
+        }
+        self.candidate_lists[level].as_deref().unwrap_or_default()
+    }
+
+    fn lists(&mut self, level: usize, features: &Features, k: usize) -> Vec<u32> {
+        let map = self.pyramid[level].map;
+        let count = k.saturating_sub(1);
+        let pixels = map.width * map.height;
+        let tileable = self.params.tileable;
+        let through_parent = self.searched_through_parent(level);
+        if through_parent {
+            self.candidates(level + 1);
+        }
+        let parent = self.pyramid.get(level + 1).map(|l| l.map);
+        let parent_lists =
+            self.candidate_lists.get(level + 1).and_then(Option::as_deref).filter(|_| through_parent);
+        let every_pixel = match parent_lists {
+            Some(_) => AllPixels::SlotMajor(Vec::new()),
+            None => AllPixels::new(features, self.pyramid[level], self.params.neighborhood, tileable),
+        };
+        (0..pixels)
+            .into_par_iter()
+            .map_init(Vec::new, |distances, a| {
+                let nearest = match (parent_lists, parent) {
+                    (Some(lists), Some(parent)) => {
+                        let cands =
+                            children_of_parent_candidates(map, parent, lists, a, COARSE_CANDIDATES + 1);
+                        features.nearest_among(a, cands.into_iter(), count, map, tileable)
+                    }
+                    _ => features.nearest_of_all(a, &every_pixel, distances, count, map, tileable),
+                };
+                let mut list = Vec::with_capacity(k);
+                list.push(a as u32);
+                list.extend_from_slice(&nearest);
+                // Tiny samples may not have k − 1 eligible pixels: repeat the last one found.
+                while list.len() < k {
+                    list.push(*list.last().unwrap_or(&(a as u32)));
                 }
-                None => features.nearest(a, all.iter().copied(), count, map, params.tileable),
-            };
-            let mut list = Vec::with_capacity(params.k);
-            list.push(a as u32);
-            list.extend_from_slice(&nearest);
-            // Tiny samples may not have k − 1 eligible pixels: repeat the last one found.
-            while list.len() < params.k {
-                list.push(*list.last().unwrap_or(&(a as u32)));
-            }
-            list.truncate(params.k.max(1));
-            list
-        })
-        .collect()
+                list.truncate(k.max(1));
+                list
+            })
+            .flatten_iter()
+            .collect()
+    }
 }
 
 /// The four children of each coarse candidate of `a`'s parent.
@@ -131,7 +194,10 @@ fn children_of_parent_candidates(
     let (x, y) = (a % fine.width, a / fine.width);
     let parent = (y / 2).min(coarse.height - 1) * coarse.width + (x / 2).min(coarse.width - 1);
     let mut out = Vec::with_capacity(4 * stride);
-    for &c in &parent_lists[parent * stride..(parent + 1) * stride] {
+    let list = &parent_lists[parent * stride..(parent + 1) * stride];
+    // A list repeats only its last entry (a tiny sample's padding), and distinct parents
+    // have distinct children; the order does not matter to `nearest_among`.
+    for (_, &c) in list.iter().enumerate().filter(|&(i, &c)| i == 0 || list[i - 1] != c) {
         let (cx, cy) = (c as usize % coarse.width, c as usize / coarse.width);
         for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
             let (fx, fy) = (2 * cx + dx, 2 * cy + dy);
@@ -140,8 +206,6 @@ fn children_of_parent_candidates(
             }
         }
     }
-    out.sort_unstable();
-    out.dedup();
     out
 }
 
@@ -188,8 +252,20 @@ impl Features {
         Features { len, labels, eligible, table, textons }
     }
 
-    /// The `count` eligible candidates nearest to `a`, nearest first, ties by index.
-    fn nearest(
+    /// The table row of each slot of `a`'s neighbourhood that lies inside the sample (the
+    /// others compare nothing).
+    fn query_rows(&self, a: usize) -> Vec<(usize, &[f32])> {
+        let query = &self.labels[a * self.len..(a + 1) * self.len];
+        query
+            .iter()
+            .enumerate()
+            .filter(|(_, &l)| l != OUTSIDE)
+            .map(|(slot, &l)| (slot, &self.table[l as usize * self.textons..(l as usize + 1) * self.textons]))
+            .collect()
+    }
+
+    /// The `count` eligible `candidates` nearest to `a`, nearest first, ties by index.
+    fn nearest_among(
         &self,
         a: usize,
         candidates: impl Iterator<Item = u32>,
@@ -197,33 +273,233 @@ impl Features {
         map: &TextonMap,
         tileable: bool,
     ) -> Vec<u32> {
-        let query = &self.labels[a * self.len..(a + 1) * self.len];
-        let rows: Vec<(usize, &[f32])> = query
-            .iter()
-            .enumerate()
-            .filter(|(_, &l)| l != OUTSIDE)
-            .map(|(slot, &l)| (slot, &self.table[l as usize * self.textons..(l as usize + 1) * self.textons]))
-            .collect();
-        let mut scored: Vec<(f32, u32)> = candidates
-            .filter(|&b| self.eligible[b as usize] && !adjacent(map, a, b as usize, tileable))
-            .map(|b| {
-                let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
-                let d: f32 = rows
-                    .iter()
-                    .map(|(slot, row)| {
-                        cand.get(*slot).and_then(|&l| row.get(l as usize)).copied().unwrap_or(0.0)
-                    })
-                    .sum();
-                (d, b)
+        let rows = self.query_rows(a);
+        let mut best = Best::new(count);
+        for b in candidates.filter(|&b| self.eligible[b as usize]) {
+            let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
+            if let Some(d) = distance_within(&rows, cand, best.bound()) {
+                if !adjacent(map, a, b as usize, tileable) {
+                    best.offer(Scored(d, b));
+                }
+            }
+        }
+        best.into_sorted()
+    }
+
+    /// [`Self::nearest_among`] every pixel, the distances summed slot by slot (see
+    /// [`AllPixels`]): streaming a slot's values for every pixel costs a fraction of
+    /// gathering each candidate's neighbourhood, which matters where the search is
+    /// exhaustive over a coarsest level of 128² pixels. The terms are added in the order
+    /// [`distance_within`] adds them, so the lists are the same.
+    fn nearest_of_all(
+        &self,
+        a: usize,
+        every_pixel: &AllPixels,
+        distances: &mut Vec<f32>,
+        count: usize,
+        map: &TextonMap,
+        tileable: bool,
+    ) -> Vec<u32> {
+        let pixels = self.eligible.len();
+        distances.clear();
+        distances.resize(pixels, -0.0);
+        match every_pixel {
+            AllPixels::Planes(planes) => {
+                for (slot, &q) in self.labels[a * self.len..(a + 1) * self.len].iter().enumerate() {
+                    if q != OUTSIDE {
+                        planes.add(q as usize, slot, distances);
+                    }
+                }
+            }
+            AllPixels::SlotMajor(by_slot) => {
+                // The query's row with a zero after it, where the slot-major labels put OUTSIDE.
+                let mut row = vec![0.0f32; self.textons + 1];
+                for (slot, query_row) in self.query_rows(a) {
+                    row[..self.textons].copy_from_slice(query_row);
+                    for (d, &l) in distances.iter_mut().zip(&by_slot[slot * pixels..(slot + 1) * pixels]) {
+                        *d += row[l as usize];
+                    }
+                }
+            }
+        }
+        let mut best = Best::new(count);
+        for (b, &d) in distances.iter().enumerate() {
+            if d <= best.bound() && self.eligible[b] && !adjacent(map, a, b, tileable) {
+                best.offer(Scored(d, b as u32));
+            }
+        }
+        best.into_sorted()
+    }
+
+    /// The labels slot by slot, `[slot][pixel]`, a slot outside the sample as `textons`.
+    fn slot_major(&self) -> Vec<u32> {
+        let pixels = self.eligible.len();
+        let mut by_slot = vec![0u32; self.len * pixels];
+        for (p, labels) in self.labels.chunks_exact(self.len).enumerate() {
+            for (slot, &l) in labels.iter().enumerate() {
+                by_slot[slot * pixels + p] = if l == OUTSIDE { self.textons as u32 } else { l };
+            }
+        }
+        by_slot
+    }
+}
+
+/// How an exhaustive search sums every pixel's distance to a query.
+enum AllPixels {
+    /// Single-level neighbourhoods: see [`Planes`].
+    Planes(Planes),
+    /// Any neighbourhood: the labels slot by slot, `[slot][pixel]` (see [`Features::slot_major`]).
+    SlotMajor(Vec<u32>),
+}
+
+impl AllPixels {
+    fn new(features: &Features, level: Level, size: usize, tileable: bool) -> Self {
+        match Planes::new(features, level, size, tileable) {
+            Some(planes) => AllPixels::Planes(planes),
+            None => AllPixels::SlotMajor(features.slot_major()),
+        }
+    }
+}
+
+/// Every texton's distance to every label of the map padded by the neighbourhood's radius
+/// (wrapped, or a zero outside a sample that does not tile): a query slot of texton t
+/// then adds plane t shifted by the slot's offset, a contiguous run per row that the
+/// compiler vectorises.
+struct Planes {
+    width: usize,
+    height: usize,
+    size: usize,
+    padded_width: usize,
+    padded_pixels: usize,
+    values: Vec<f32>,
+}
+
+impl Planes {
+    /// Most values the planes may hold (256 MiB); a larger search sums slot-major labels.
+    const MAX_VALUES: usize = 1 << 26;
+
+    /// Planes for `features` when they are `level`'s own single-level neighbourhoods.
+    fn new(features: &Features, level: Level, size: usize, tileable: bool) -> Option<Self> {
+        let map = level.map;
+        let r = size / 2;
+        let (pw, ph) = (map.width + 2 * r, map.height + 2 * r);
+        let single_level = features.len == size * size && features.textons == level.textons;
+        if !single_level || level.textons * pw * ph > Self::MAX_VALUES {
+            return None;
+        }
+        let padded: Vec<Option<u16>> = (0..pw * ph)
+            .map(|i| {
+                let (mut x, mut y) = ((i % pw) as isize - r as isize, (i / pw) as isize - r as isize);
+                if tileable {
+                    x = x.rem_euclid(map.width as isize);
+                    y = y.rem_euclid(map.height as isize);
+                }
+                let inside = (0..map.width as isize).contains(&x) && (0..map.height as isize).contains(&y);
+                inside.then(|| map.labels[y as usize * map.width + x as usize])
             })
             .collect();
-        let by_distance = |x: &(f32, u32), y: &(f32, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-        if scored.len() > count {
-            scored.select_nth_unstable_by(count, by_distance);
-            scored.truncate(count);
+        let values = (0..level.textons)
+            .flat_map(|t| {
+                let row = &level.distances[t * level.textons..(t + 1) * level.textons];
+                padded.iter().map(move |l| l.map_or(0.0, |l| row.get(l as usize).copied().unwrap_or(0.0)))
+            })
+            .collect();
+        Some(Planes {
+            width: map.width,
+            height: map.height,
+            size,
+            padded_width: pw,
+            padded_pixels: pw * ph,
+            values,
+        })
+    }
+
+    /// Adds, for every pixel, the distance of texton `t` to the label at neighbourhood `slot`.
+    fn add(&self, t: usize, slot: usize, distances: &mut [f32]) {
+        let (dy, dx) = (slot / self.size, slot % self.size);
+        let plane = &self.values[t * self.padded_pixels..(t + 1) * self.padded_pixels];
+        for (y, out) in distances.chunks_exact_mut(self.width).take(self.height).enumerate() {
+            let start = (y + dy) * self.padded_width + dx;
+            for (d, &v) in out.iter_mut().zip(&plane[start..start + self.width]) {
+                *d += v;
+            }
         }
-        scored.sort_by(by_distance);
-        scored.into_iter().map(|(_, b)| b).collect()
+    }
+}
+
+/// The `count` best candidates offered so far, by (distance, index).
+struct Best {
+    count: usize,
+    heap: BinaryHeap<Scored>,
+}
+
+impl Best {
+    fn new(count: usize) -> Self {
+        Best { count, heap: BinaryHeap::with_capacity(count + 1) }
+    }
+
+    /// A candidate farther than this cannot enter.
+    fn bound(&self) -> f32 {
+        match self.heap.peek() {
+            Some(worst) if self.heap.len() == self.count => worst.0,
+            _ if self.count == 0 => f32::NEG_INFINITY,
+            _ => f32::INFINITY,
+        }
+    }
+
+    fn offer(&mut self, scored: Scored) {
+        if self.heap.len() < self.count {
+            self.heap.push(scored);
+        } else if let Some(mut worst) = self.heap.peek_mut() {
+            if scored < *worst {
+                *worst = scored;
+            }
+        }
+    }
+
+    fn into_sorted(self) -> Vec<u32> {
+        self.heap.into_sorted_vec().into_iter().map(|s| s.1).collect()
+    }
+}
+
+/// Table rows are checked against the bound once per this many slots (a 5×5 row).
+const PRUNE_EVERY: usize = 5;
+
+/// The distance of a candidate's neighbourhood to the query's `rows`, or `None` once it is
+/// past `bound`. Exact: every term is ≥ 0, so a partial sum never exceeds the whole, and the
+/// terms are added in slot order from −0.0, as `Iterator::sum` adds them, so the distances
+/// (and the lists' order of ties) are those of summing every slot.
+fn distance_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32) -> Option<f32> {
+    let mut d = -0.0f32;
+    for chunk in rows.chunks(PRUNE_EVERY) {
+        for (slot, row) in chunk {
+            d += cand.get(*slot).and_then(|&l| row.get(l as usize)).copied().unwrap_or(0.0);
+        }
+        if d > bound {
+            return None;
+        }
+    }
+    Some(d)
+}
+
+/// A candidate's distance and index, ordered by distance, then index (the lists' order).
+#[derive(Clone, Copy, Debug)]
+struct Scored(f32, u32);
+
+impl PartialEq for Scored {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other).is_eq()
+    }
+}
+impl Eq for Scored {}
+impl PartialOrd for Scored {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Scored {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
     }
 }
 
@@ -351,6 +627,114 @@ mod tests {
                 })
                 .count();
             assert_eq!(wrong, 0);
+        }
+    }
+
+    /// Pseudo-random labels (a fixed LCG) and a random symmetric table with a zero diagonal.
+    fn random_level(w: usize, h: usize, textons: usize, seed: u64) -> (TextonMap, Vec<f32>) {
+        let mut x = seed;
+        let mut next = || {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (x >> 33) as usize
+        };
+        let labels = (0..w * h).map(|_| (next() % textons) as u16).collect();
+        let mut table = vec![0.0; textons * textons];
+        for i in 0..textons {
+            for j in 0..i {
+                let d = (next() % 1000) as f32 / 250.0;
+                table[i * textons + j] = d;
+                table[j * textons + i] = d;
+            }
+        }
+        (TextonMap { width: w, height: h, labels }, table)
+    }
+
+    /// The lists as the search is defined, without pruning, planes or shared candidates:
+    /// every distance summed in slot order, sorted by (distance, index).
+    fn naive_lists(
+        pyramid: &[Level],
+        level: usize,
+        parts: &[(Level, usize)],
+        k: usize,
+        tileable: bool,
+    ) -> Vec<u32> {
+        let features = Features::new(parts, tileable);
+        let map = pyramid[level].map;
+        let pixels = map.width * map.height;
+        let n = parts[0].1;
+        let parent = (pixels > EXHAUSTIVE_LIMIT && level + 1 < pyramid.len()).then(|| {
+            naive_lists(pyramid, level + 1, &[(pyramid[level + 1], n)], COARSE_CANDIDATES + 1, tileable)
+        });
+        (0..pixels)
+            .flat_map(|a| {
+                let candidates: Vec<u32> = match &parent {
+                    Some(lists) => {
+                        let mut c = children_of_parent_candidates(
+                            map,
+                            pyramid[level + 1].map,
+                            lists,
+                            a,
+                            COARSE_CANDIDATES + 1,
+                        );
+                        c.sort_unstable();
+                        c.dedup();
+                        c
+                    }
+                    None => (0..pixels as u32).collect(),
+                };
+                let rows = features.query_rows(a);
+                let mut scored: Vec<(f32, u32)> = candidates
+                    .into_iter()
+                    .filter(|&b| features.eligible[b as usize] && !adjacent(map, a, b as usize, tileable))
+                    .map(|b| {
+                        let cand = &features.labels[b as usize * features.len..][..features.len];
+                        let d: f32 = rows
+                            .iter()
+                            .map(|(slot, row)| row.get(cand[*slot] as usize).copied().unwrap_or(0.0))
+                            .sum();
+                        (d, b)
+                    })
+                    .collect();
+                scored.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                let mut list = vec![a as u32];
+                list.extend(scored.iter().take(k - 1).map(|s| s.1));
+                while list.len() < k {
+                    list.push(*list.last().unwrap());
+                }
+                list
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_fast_search_gives_the_lists_of_the_naive_search() {
+        // Three levels, the finest above the exhaustive limit, the coarsest small: every
+        // path (shared candidates, pruning, planes, slot-major sums) is taken.
+        let sizes = [(70, 66, 9), (35, 33, 7), (18, 17, 5)];
+        let made: Vec<(TextonMap, Vec<f32>)> =
+            sizes.iter().enumerate().map(|(i, &(w, h, t))| random_level(w, h, t, i as u64 + 7)).collect();
+        let pyramid: Vec<Level> =
+            made.iter().zip(&sizes).map(|((m, t), s)| Level { map: m, distances: t, textons: s.2 }).collect();
+        for tileable in [false, true] {
+            let params = KnnParams { k: 4, neighborhood: 5, tileable };
+            let mut search = PyramidSearch::new(&pyramid, params);
+            for level in 0..pyramid.len() {
+                let single = naive_lists(&pyramid, level, &[(pyramid[level], 5)], 4, tileable);
+                assert_eq!(
+                    search.single_level(level),
+                    single,
+                    "single-level lists of level {level}, tileable {tileable}"
+                );
+                if level + 1 < pyramid.len() {
+                    let parts = [(pyramid[level], 5), (pyramid[level + 1], parent_size(5))];
+                    let two = naive_lists(&pyramid, level, &parts, 4, tileable);
+                    assert_eq!(
+                        search.two_level(level),
+                        two,
+                        "two-level lists of level {level}, tileable {tileable}"
+                    );
+                }
+            }
         }
     }
 

@@ -4,7 +4,7 @@ use super::basis::{principal_images_low_rank, LowRankStack};
 use super::convolve::{BankConvolver, Padding};
 use super::filters::FilterBank;
 use super::gamma::distance_table;
-use super::knn::{single_level_lists, two_level_lists, KnnParams, Level};
+use super::knn::{KnnParams, Level, PyramidSearch};
 use super::pyramid::{downsample, level_sizes};
 use super::select::{representatives, representatives_from_basis, selection_basis_options};
 use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
@@ -300,10 +300,11 @@ fn knn_lists(
         .collect();
     let knn = KnnParams { k: params.k, neighborhood: params.neighborhood, tileable: params.tileable };
     progress.start("kNN lists", levels.len() as u64);
+    let mut search = PyramidSearch::new(&pyramid, knn);
     let lists: Vec<(Vec<u32>, Option<Vec<u32>>)> = (0..levels.len())
         .map(|l| {
-            let single = single_level_lists(&pyramid, l, &knn);
-            let two = (l + 1 < levels.len()).then(|| two_level_lists(&pyramid, l, &knn));
+            let single = search.single_level(l);
+            let two = (l + 1 < levels.len()).then(|| search.two_level(l));
             progress.advance(1);
             (single, two)
         })
