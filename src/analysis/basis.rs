@@ -382,23 +382,29 @@ fn randomized_range(x: &Array2<f32>, q: usize, seed: u64) -> Array2<f32> {
     orthonormal_columns(y)
 }
 
-/// Modified Gram–Schmidt in f64; a column that vanishes is left zero.
+/// Modified Gram–Schmidt in f64; a column that vanishes is left zero. The columns are worked
+/// on as the rows of the transpose, so each pass reads memory in order (a 262,144-row sketch
+/// read by columns spent most of its time in cache misses); the dot products add their terms
+/// in index order, as a strided `dot` does, so the result is the same to the bit.
 fn orthonormal_columns(y: Array2<f32>) -> Array2<f32> {
-    let mut m = y.mapv(|v| v as f64);
-    for j in 0..m.ncols() {
-        for i in 0..j {
-            let proj = m.column(i).dot(&m.column(j));
-            let ci = m.column(i).to_owned();
-            m.column_mut(j).scaled_add(-proj, &ci);
+    let mut columns: Vec<Vec<f64>> =
+        y.columns().into_iter().map(|c| c.iter().map(|&v| v as f64).collect()).collect();
+    let in_order = |a: &[f64], b: &[f64]| a.iter().zip(b).fold(0.0, |sum, (x, y)| sum + x * y);
+    for j in 0..columns.len() {
+        let (done, rest) = columns.split_at_mut(j);
+        let column = &mut rest[0];
+        for earlier in done.iter() {
+            let proj = in_order(earlier, column);
+            column.iter_mut().zip(earlier).for_each(|(v, &e)| *v += -proj * e);
         }
-        let norm = m.column(j).dot(&m.column(j)).sqrt();
+        let norm = in_order(column, column).sqrt();
         if norm > 1e-12 {
-            m.column_mut(j).mapv_inplace(|v| v / norm);
+            column.iter_mut().for_each(|v| *v /= norm);
         } else {
-            m.column_mut(j).fill(0.0);
+            column.fill(0.0);
         }
     }
-    m.mapv(|v| v as f32)
+    Array2::from_shape_fn(y.dim(), |(r, j)| columns[j][r] as f32)
 }
 
 #[cfg(test)]
