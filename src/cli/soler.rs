@@ -51,8 +51,9 @@ pub struct SolerArgs {
     /// a cluster above it is split into smaller ones.
     #[arg(long, default_value_t = 0.1, value_parser = super::positive_number)]
     max_distortion: f32,
-    /// Largest fitting error of one patch, as a fraction of a random placement's; a
-    /// cluster above it is split. Lower: smaller patches, fainter seams.
+    /// Largest output error of one patch: the mean squared difference along its borders
+    /// with textured neighbours once fitted and relaxed, as a fraction of two random
+    /// texels'; a cluster above it is split. Lower: smaller patches, fainter seams.
     #[arg(long, default_value_t = 0.3, value_parser = super::positive_number)]
     fit_threshold: f32,
     /// The space colours are matched in.

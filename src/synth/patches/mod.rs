@@ -65,9 +65,10 @@ pub struct SolerParams {
     /// Largest flattening error |r − 1| a cluster may have and be mapped as one patch
     /// (default 0.1: about 10% more area on the surface than in the sample).
     pub max_flat_error: f32,
-    /// Largest fitting error a cluster may have and be mapped as one patch, as a fraction of
-    /// the error of a random placement (default 0.3). Lower: more, smaller patches with
-    /// fainter seams; higher: larger patches, more visible seams.
+    /// Largest output error a cluster may have and be mapped as one patch (§4.4): the mean
+    /// squared difference along its shared edges with textured neighbours once placed and
+    /// relaxed, as a fraction of two random texels' (default 0.3). Lower: more, smaller
+    /// patches with fainter seams; higher: larger patches, more visible seams.
     pub max_fit_error: f32,
     /// The colour space masks are compared in (default L*a*b*; the paper's is HSV).
     pub colour: ColourSpace,
@@ -138,8 +139,8 @@ pub struct LevelReport {
     pub too_large: usize,
     pub poor_fit: usize,
     pub unreached: usize,
-    /// Median fitting error of the level's fits, as a fraction of a random placement's
-    /// (NaN without fits).
+    /// Median output error of the level's fits (along shared edges, relaxed, as a fraction
+    /// of two random texels'; NaN without fits).
     pub median_fit_error: f32,
     pub seconds: f64,
 }
