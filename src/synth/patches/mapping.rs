@@ -224,10 +224,26 @@ impl Mapper<'_> {
         if !single && (chart.folds > 0 || chart.flat_error > self.params.max_flat_error) {
             return Ok((Outcome::Distorted, None));
         }
+        let h = self.hierarchy;
+        let piece = h.owner[0][cluster.faces[0] as usize];
+        let starting = !mapping.started_pieces.contains(&piece);
+        // The user's first face (§5): on its piece, nothing else starts before the cluster
+        // that holds it; the others wait (its single face always maps, so it does start).
+        if let Some(g) = self.first_face {
+            if starting && h.owner[0][g as usize] == piece && h.owner[cluster.level as usize][g as usize] != c
+            {
+                return Ok((Outcome::Unreached, None));
+            }
+        }
         // The chart in texels, turned by a random angle so that the fixed rotations of the
-        // sample do not include the trivial continuation of a neighbour (§4.2).
-        let turn =
-            Mat2::from_angle(rng.random_range(0.0..std::f32::consts::TAU)) * self.params.texels_per_unit;
+        // sample do not include the trivial continuation of a neighbour (§4.2); a start
+        // with the user's orientation is turned to it and placed unrotated.
+        let oriented = self.params.orientation.filter(|_| starting);
+        let angle = match oriented {
+            Some(degrees) => self.start_angle(chart, degrees),
+            None => rng.random_range(0.0..std::f32::consts::TAU),
+        };
+        let turn = Mat2::from_angle(angle) * self.params.texels_per_unit;
         let local: Vec<Vec2> = chart.vertices.iter().map(|&(_, p)| turn * p).collect();
         if !single && !self.may_fit(&local) {
             return Ok((Outcome::TooLarge, None));
@@ -236,11 +252,11 @@ impl Mapper<'_> {
         let footprint = || local.iter().map(|&p| mirror(p));
         let (lo, hi) = bounds(footprint().chain(band.iter().flat_map(|(_, p)| p.map(mirror))));
         let origin = (lo - Vec2::ONE).floor();
-        let mask =
-            (!band.is_empty()).then(|| self.mask(&band, (chart, &local), origin, hi, mapping)).filter(|m| m.count() > 0);
+        let mask = (!band.is_empty())
+            .then(|| self.mask(&band, (chart, &local), origin, hi, mapping))
+            .filter(|m| m.count() > 0);
         // A cluster of the last level cannot wait; neither can one beside a textured face
         // whose band came out empty (it would wait for ever).
-        let piece = self.hierarchy.owner[0][cluster.faces[0] as usize];
         let may_wait = !cluster.children.is_empty() && self.textured_neighbours(c, mapping) == 0;
         if mask.is_none() && may_wait && self.params.matching && mapping.started_pieces.contains(&piece) {
             return Ok((Outcome::Unreached, None));
@@ -262,7 +278,7 @@ impl Mapper<'_> {
             // No textured neighbour (or a single face too large to match): a random placement.
             _ => {
                 let (lo, hi) = bounds(footprint());
-                let placement = match self.random_placement(lo, hi, rng) {
+                let placement = match self.random_placement(lo, hi, oriented.map(|_| 0), rng) {
                     Some(p) => p,
                     None if single => self.forced_placement(lo, hi),
                     None => return Ok((Outcome::TooLarge, None)),
@@ -379,14 +395,51 @@ impl Mapper<'_> {
         short <= w.max(h) && long <= (w * w + h * h).sqrt()
     }
 
+    /// The angle to turn `chart` by so that, placed unrotated in the sample, the sample's
+    /// up (decreasing rows, +y of the turned chart before it is mirrored to rows) points
+    /// `degrees` counter-clockwise from the model's +Y axis as it lies on the chart (+X
+    /// where the chart's plane holds too little of Y).
+    fn start_angle(&self, chart: &Chart, degrees: f32) -> f32 {
+        let graph = self.graph;
+        let n = chart.vertices.len().max(1) as f32;
+        let q0 = chart.vertices.iter().map(|&(_, q)| q).sum::<Vec2>() / n;
+        let p0 = chart.vertices.iter().map(|&(v, _)| graph.positions[v as usize]).sum::<glam::Vec3>() / n;
+        // The linear map A (chart → model) of least squares: A = (Σ P qᵀ)(Σ q qᵀ)⁻¹.
+        let (mut pq, mut qq) = ([glam::Vec3::ZERO; 2], Mat2::ZERO);
+        for &(v, q) in &chart.vertices {
+            let (q, p) = (q - q0, graph.positions[v as usize] - p0);
+            pq[0] += p * q.x;
+            pq[1] += p * q.y;
+            qq += Mat2::from_cols(q * q.x, q * q.y);
+        }
+        let inverse = if qq.determinant().abs() > 1e-20 { qq.inverse() } else { Mat2::IDENTITY };
+        let (ax, ay) = (
+            pq[0] * inverse.x_axis.x + pq[1] * inverse.x_axis.y,
+            pq[0] * inverse.y_axis.x + pq[1] * inverse.y_axis.y,
+        );
+        // The chart direction of an axis: Aᵀ axis, good enough for a near-isometric A.
+        let along = |axis: glam::Vec3| Vec2::new(ax.dot(axis), ay.dot(axis));
+        let scale = ax.length().max(ay.length()).max(f32::MIN_POSITIVE);
+        let up = along(glam::Vec3::Y);
+        let d = if up.length() > 0.3 * scale { up } else { along(glam::Vec3::X) };
+        std::f32::consts::FRAC_PI_2 - (d.to_angle() + degrees.to_radians())
+    }
+
     /// A random placement of a footprint spanning `lo..hi` (mask pixels) with the
-    /// footprint inside the sample, at one of the fitter's rotations.
-    fn random_placement(&self, lo: Vec2, hi: Vec2, rng: &mut ChaCha8Rng) -> Option<Placement> {
+    /// footprint inside the sample, at one of the fitter's rotations (`rotation` if given).
+    fn random_placement(
+        &self,
+        lo: Vec2,
+        hi: Vec2,
+        rotation: Option<usize>,
+        rng: &mut ChaCha8Rng,
+    ) -> Option<Placement> {
         let size = (hi - lo).ceil() + Vec2::ONE;
         let (mw, mh) = (size.x as usize, size.y as usize);
         let count = self.fitter.rotation_count();
         let first = rng.random_range(0..count);
-        for k in (0..count).map(|i| (first + i) % count) {
+        let tries = if rotation.is_some() { 1 } else { count };
+        for k in (0..tries).map(|i| rotation.unwrap_or((first + i) % count)) {
             let rows = self.fitter.positions(k, mw, mh);
             let total: i64 = rows.iter().map(|&(a, b)| (b - a + 1).max(0)).sum();
             if total <= 0 {
