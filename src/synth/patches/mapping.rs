@@ -550,8 +550,8 @@ impl Mapper<'_> {
     ///
     /// [`Mapper::band`] selects whole faces (any face with a corner within the band), so
     /// where faces are wider than the band, uncut, the mask would reach a whole ring of
-    /// faces into the neighbours (about 15 texels on the bunny at the default scale for a
-    /// 6-texel band) and the fit would match a region of the neighbours rather than their
+    /// faces into the neighbours (about 20 texels per face edge on the bunny at the default
+    /// scale, for a 6-texel band) and the fit would match a region of the neighbours rather than their
     /// texture along the border, which the paper's band, cut *within* the triangles
     /// (§4.1: the portion of the triangles whose position value is under the threshold),
     /// does not ask.
