@@ -4,7 +4,10 @@ use super::progress::Bars;
 use super::shots::with_force_hint;
 use anyhow::{bail, Result};
 use btfsynth::analysis::store::verify_fingerprint;
-use btfsynth::eval::report::{evaluate_picture, evaluate_plane, evaluate_surface, Evaluation};
+use btfsynth::eval::report::{
+    evaluate_picture, evaluate_plane, evaluate_surface, evaluate_uv_map, Evaluation,
+};
+use btfsynth::synth::patches::output::{read_uv_map, uv_map_comments};
 use btfsynth::synth::plane::MANIFEST;
 use btfsynth::synth::surface_map::{read_surface_ply, ANALYSIS_FINGERPRINT_KEY};
 use std::path::PathBuf;
@@ -26,11 +29,13 @@ use std::path::PathBuf;
 Examples:
   btfsynth eval stone.analysis/ plane/            a plane result (synth --plane)
   btfsynth eval stone.analysis/ bunny.ply         a surface map
+  btfsynth eval stone.analysis/ bunny-uv.ply      texture coordinates (synth --method soler2002)
   btfsynth eval stone.analysis/ other-tool.png    any picture, e.g. another synthesizer's")]
 pub struct EvalArgs {
     /// The analysis directory the result was synthesized from (or should look like).
     analysis: PathBuf,
-    /// A surface map (the PLY from `synth ANALYSIS MESH`), a plane result directory, or a
+    /// A surface map (the PLY from `synth ANALYSIS MESH`), a texture-mapped mesh (from
+    /// `synth --method soler2002`), a plane result directory, or a
     /// PNG/JPEG picture (image-space measures only).
     result: PathBuf,
     /// Print one JSON object instead of the table.
@@ -46,6 +51,10 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
     let evaluation = if args.result.join(MANIFEST).is_file() {
         check_analysis(&args, plane_fingerprint(&args.result).as_deref())?;
         evaluate_plane(&args.analysis, &args.result)?
+    } else if args.result.is_file() && uv_map_comments(&args.result).is_some() {
+        let map = read_uv_map(&args.result)?;
+        check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
+        evaluate_uv_map(&args.analysis, &map)?
     } else if is_picture(&args.result) {
         evaluate_picture(&args.analysis, &args.result)?
     } else if args.result.is_file() {
@@ -61,7 +70,7 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         evaluate_surface(&args.analysis, &map, neighborhood, &args.result)?
     } else {
         bail!(
-            "{}: not a result: expected a plane directory, a surface map PLY or a PNG/JPEG picture",
+            "{}: not a result: expected a plane directory, a surface map PLY, a soler2002 uvmap (.ply/.obj) or a PNG/JPEG picture",
             args.result.display()
         );
     };
@@ -133,6 +142,17 @@ fn table(args: &EvalArgs, e: &Evaluation) -> String {
     }
     if let Some(t) = &e.textons {
         let _ = writeln!(out, "  textons: chi2 {:.4}, energy {:.4}", t.chi2, t.energy);
+    }
+    if let Some(s) = &e.seams {
+        let _ = writeln!(
+            out,
+            "  seams: patch energy across patch borders {:.5} ({} windows), inside patches {:.5} ({} windows), ratio {:.2}",
+            s.border,
+            s.border_windows,
+            s.interior,
+            s.interior_windows,
+            s.border / s.interior
+        );
     }
     out.trim_end().to_string()
 }

@@ -51,8 +51,9 @@ pub struct SolerArgs {
     /// a cluster above it is split into smaller ones.
     #[arg(long, default_value_t = 0.1, value_parser = super::positive_number)]
     max_distortion: f32,
-    /// Largest fitting error of one patch, as a fraction of a random placement's; a
-    /// cluster above it is split. Lower: smaller patches, fainter seams.
+    /// Largest output error of one patch: the mean squared difference along its borders
+    /// with textured neighbours once fitted and relaxed, as a fraction of two random
+    /// texels'; a cluster above it is split. Lower: smaller patches, fainter seams.
     #[arg(long, default_value_t = 0.3, value_parser = super::positive_number)]
     fit_threshold: f32,
     /// The space colours are matched in.
@@ -61,6 +62,15 @@ pub struct SolerArgs {
     /// Do not relax texture coordinates along patch borders after each fit.
     #[arg(long)]
     no_relax: bool,
+    /// The face (0-based, in the file's order) the first patch holds: the mapping grows
+    /// from there (default: the flattest large cluster).
+    #[arg(long, value_name = "N")]
+    first_face: Option<usize>,
+    /// The first patch's orientation in degrees: the sample's up points this far
+    /// counter-clockwise (seen from outside) from the model's +Y axis on the patch
+    /// (+X where the patch faces along Y). Default: random.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    orientation: Option<f32>,
 }
 
 /// The `synth` arguments the method uses.
@@ -124,14 +134,25 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         relax: !args.no_relax,
         matching: true,
         seed: common.seed,
+        first_face: args.first_face,
+        orientation: args.orientation,
     };
     params.validate().map_err(usage)?;
+    if let Some(f) = args.first_face.filter(|&f| f >= mesh.triangles.len()) {
+        return Err(usage(format!(
+            "--first-face {f}: {} has {} faces (0 to {})",
+            common.mesh.display(),
+            mesh.triangles.len(),
+            mesh.triangles.len().saturating_sub(1)
+        )));
+    }
     let result = map_mesh(&mesh.positions, &mesh.triangles, common.mesh, sample, &params, bars)?;
     let colour_name = format!("{:?}", args.colour_space).to_lowercase();
     let mut params_json = serde_json::json!({
         "method": "soler2002", "texels_per_unit": texels_per_unit, "rotations": params.rotations,
         "band": params.band, "max_distortion": params.max_flat_error, "fit_threshold": params.max_fit_error,
         "colour_space": colour_name, "relax": params.relax, "seed": params.seed, "image": shown,
+        "first_face": params.first_face, "orientation": params.orientation,
     });
     let provenance = Provenance {
         analysis: common.analysis,

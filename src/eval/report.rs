@@ -22,7 +22,8 @@ use std::path::Path;
 /// Every measure of one result.
 #[derive(Clone, Debug, Serialize)]
 pub struct Evaluation {
-    /// `plane`, `surface` or `picture`.
+    /// `plane`, `surface`, `uvmap` (texture coordinates on the user's mesh, from
+    /// `synth --method soler2002`) or `picture`.
     pub kind: &'static str,
     /// Output vertices (pixels of a plane or picture).
     pub vertices: usize,
@@ -32,6 +33,10 @@ pub struct Evaluation {
     pub textons: Option<TextonQuality>,
     /// Image-space measures per view/light pair.
     pub probes: Vec<ProbeQuality>,
+    /// A uvmap only: the patch energy of windows straddling a patch border against windows
+    /// inside one patch, on the head-on image.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seams: Option<crate::synth::patches::quality::SeamQuality>,
 }
 
 /// The image-space measures under one view/light pair.
@@ -74,6 +79,7 @@ pub fn evaluate_plane(analysis_dir: &Path, plane_dir: &Path) -> Result<Evaluatio
         coords: Some(coord_quality(&level, &state, (sample.width, sample.height), tileable)),
         textons: Some(texton_quality(&level, &state, &sample)),
         probes,
+        seams: None,
     })
 }
 
@@ -111,7 +117,99 @@ pub fn evaluate_surface(
         coords: Some(coord_quality(&level, &map.state, (sample.width, sample.height), tileable)),
         textons: Some(texton_quality(&level, &map.state, &sample)),
         probes,
+        seams: None,
     })
+}
+
+/// A texture-mapped mesh (`synth --method soler2002`) against the analysis in
+/// `analysis_dir`. It has no texton labels and no per-vertex coordinates, so only the
+/// image-space measures apply, on the surface itself: the patch energy of 7×7 windows
+/// resampled on the surface at one sample texel per pixel (3,000 faces drawn with seed 1;
+/// see [`crate::synth::patches::quality::seam_quality`]), the colour histogram and contrast of
+/// the texture at four points per face.
+pub fn evaluate_uv_map(
+    analysis_dir: &Path,
+    map: &crate::synth::patches::output::UvMap,
+) -> Result<Evaluation> {
+    use crate::synth::patches::quality::seam_quality;
+    let images = SampleImages::open(analysis_dir)?;
+    if (images.width, images.height) != map.sample {
+        return Err(Error::invalid(format!(
+            "the result maps a {}x{} sample, the analysis {} holds {}x{}",
+            map.sample.0,
+            map.sample.1,
+            analysis_dir.display(),
+            images.width,
+            images.height
+        )));
+    }
+    let (mesh, scale) = (&map.mesh, 1.0 / map.texel);
+    let mut seams = None;
+    let probes = images
+        .default_probes()
+        .into_iter()
+        .map(|probe| {
+            let picture = images.picture(probe.image);
+            let q = seam_quality(
+                &mesh.positions,
+                &mesh.triangles,
+                &map.corner_uv,
+                &map.cluster,
+                &picture,
+                map.tileable,
+                scale,
+                (3000, 1),
+            )?;
+            let windows = (q.border_windows + q.interior_windows).max(1) as f64;
+            let weighted = |e: f64, n: usize| if n > 0 { e * n as f64 } else { 0.0 };
+            let patch_energy =
+                (weighted(q.border, q.border_windows) + weighted(q.interior, q.interior_windows)) / windows;
+            let colours = surface_colours(&map.corner_uv, &picture, map.tileable);
+            seams.get_or_insert(q);
+            let quality = PictureQuality {
+                patch_energy,
+                patch_energy_coarse: f64::NAN,
+                colour_chi2: colour_chi2(&colours, &picture),
+                contrast: contrast(&colours, &picture),
+                repetition: Repetition::NAN,
+            };
+            Ok(ProbeQuality { probe, quality, wrap_seam_energy: None })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Evaluation {
+        kind: "uvmap",
+        vertices: mesh.positions.len(),
+        coords: None,
+        textons: None,
+        probes,
+        seams,
+    })
+}
+
+/// The texture at the centroid and three inner points of every face (nearest texel), as a
+/// one-row picture.
+fn surface_colours(corner_uv: &[[glam::Vec2; 3]], picture: &Picture, tileable: bool) -> Picture {
+    let (w, h) = (picture.width as i64, picture.height as i64);
+    let at = |p: glam::Vec2| {
+        let (x, y) = (p.x.round() as i64, p.y.round() as i64);
+        let (x, y) = if tileable {
+            (x.rem_euclid(w), y.rem_euclid(h))
+        } else {
+            (x.clamp(0, w - 1), y.clamp(0, h - 1))
+        };
+        picture.rgb[(y * w + x) as usize]
+    };
+    let weights = [
+        [1.0 / 3.0; 3],
+        [2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0],
+        [1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0],
+        [1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0],
+    ];
+    let rgb: Vec<[f32; 3]> = corner_uv
+        .iter()
+        .flat_map(|uv| weights.iter().map(move |b| at(uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2])))
+        .collect();
+    Picture { width: rgb.len(), height: 1, rgb }
 }
 
 /// A bare picture (e.g. another synthesizer's output from the same sample) against the
@@ -129,6 +227,7 @@ pub fn evaluate_picture(analysis_dir: &Path, path: &Path) -> Result<Evaluation> 
         coords: None,
         textons: None,
         probes: vec![ProbeQuality { probe, quality, wrap_seam_energy: None }],
+        seams: None,
     })
 }
 

@@ -104,17 +104,28 @@ fn the_bunny_keeps_every_face_renders_and_exports_the_sample_itself() {
     let texture = image::open(dir.path().join(image)).expect("the texture").to_rgb8();
     assert_eq!(texture.dimensions(), (64, 64), "the texture is the sample at full resolution");
     assert_eq!(gltf["samplers"][0]["wrapS"], 33071, "a sample that does not tile is clamped");
+
+    // eval scores it on the surface itself.
+    let scored = run(&["eval", s(&analysis), s(&out), "--json"]);
+    let e: Value = serde_json::from_slice(&scored.stdout).expect("eval JSON");
+    assert_eq!(e["kind"], "uvmap");
+    assert_eq!(e["vertices"], map.mesh.positions.len());
+    let energy = e["probes"][0]["patch_energy"].as_f64().expect("a patch energy");
+    assert!(energy > 0.0 && energy < 0.1, "{energy}");
+    let seams = &e["seams"];
+    assert!(
+        seams["border_windows"].as_u64().unwrap() > 50 && seams["interior_windows"].as_u64().unwrap() > 50
+    );
+    assert!(seams["border"].as_f64().unwrap() > 0.0 && seams["interior"].as_f64().unwrap() > 0.0);
+    // Against an analysis of another sample size, one line.
+    let other = analyze_gravel(dir.path(), "gravel48", "0,0,48,48");
+    let refused = btfsynth(&["eval", s(&other), s(&out), "--json", "--force-analysis"]);
+    assert_one_line_error(&refused, "48x48");
 }
 
-#[test]
-fn a_plane_maps_as_one_undistorted_patch_and_an_obj_is_written_too() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let analysis = analyze_gravel(dir.path(), "gravel", "0,0,64,64");
-    // A 10×10-quad plane two units wide: with 20 texels per unit it is 40 texels across,
-    // and fits in the 64² sample as one patch.
-    let plane = dir.path().join("grid.obj");
+/// The grid plane of `n × n` quads `0.2 n` units wide, in z = 0, counter-clockwise from +Z.
+fn grid_plane(path: &Path, n: usize) {
     let mut text = String::new();
-    let n = 10;
     for j in 0..=n {
         for i in 0..=n {
             text += &format!("v {} {} 0\n", 0.2 * i as f32, 0.2 * j as f32);
@@ -126,7 +137,98 @@ fn a_plane_maps_as_one_undistorted_patch_and_an_obj_is_written_too() {
             text += &format!("f {} {} {}\nf {} {} {}\n", a, a + 1, a + n + 2, a, a + n + 2, a + n + 1);
         }
     }
-    std::fs::write(&plane, text).expect("plane");
+    std::fs::write(path, text).expect("plane");
+}
+
+#[test]
+fn the_user_chooses_the_first_face_and_the_orientation() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let analysis = analyze_gravel(dir.path(), "gravel", "0,0,64,64");
+    // The first patch holds the chosen face: the coarsest level with a start is its level.
+    for face in [100usize, 3000] {
+        let out = dir.path().join(format!("first{face}.ply"));
+        let report = dir.path().join(format!("first{face}.json"));
+        let face_arg = face.to_string();
+        run(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            BUNNY,
+            "--method",
+            "soler2002",
+            "--first-face",
+            &face_arg,
+            "-o",
+            s(&out),
+            "--report",
+            s(&report),
+        ]);
+        let map = read_uv_map(&out).expect("a uvmap");
+        let report: Value = serde_json::from_slice(&std::fs::read(&report).expect("report")).expect("JSON");
+        let first = report["levels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|l| l["started"].as_u64().unwrap() > 0)
+            .map(|l| l["level"].as_u64().unwrap())
+            .expect("a start");
+        assert_eq!(u64::from(map.level[face]), first, "face {face} is in the first patch");
+        let starts = map.cluster.iter().filter(|&&c| c == map.cluster[face]).count();
+        assert!(starts > 1, "the first patch is more than the face itself ({starts})");
+    }
+    let refused = btfsynth(&[
+        "-q",
+        "synth",
+        s(&analysis),
+        BUNNY,
+        "--method",
+        "soler2002",
+        "--first-face",
+        "3674",
+        "-o",
+        s(&dir.path().join("no.ply")),
+    ]);
+    assert_usage_error(&refused, "--first-face 3674");
+    assert!(!dir.path().join("no.ply").exists());
+
+    // On a plane mapped as one patch, the sample's up follows the model's +Y turned by the
+    // angle: steps of 0.2 units are 4 texels at --scale 20.
+    let plane = dir.path().join("grid.obj");
+    grid_plane(&plane, 10);
+    for (degrees, along_x, along_y) in
+        [("0", Vec2::new(4.0, 0.0), Vec2::new(0.0, -4.0)), ("90", Vec2::new(0.0, 4.0), Vec2::new(4.0, 0.0))]
+    {
+        let out = dir.path().join(format!("plane{degrees}.ply"));
+        run(&[
+            "-q",
+            "synth",
+            s(&analysis),
+            s(&plane),
+            "--method",
+            "soler2002",
+            "--scale",
+            "20",
+            "--orientation",
+            degrees,
+            "-o",
+            s(&out),
+        ]);
+        let map = read_uv_map(&out).expect("a uvmap");
+        // Face 0's corners: (0, 0), (0.2, 0), (0.2, 0.2).
+        let uv = map.corner_uv[0];
+        let (dx, dy) = (uv[1] - uv[0], uv[2] - uv[1]);
+        assert!(dx.distance(along_x) < 0.05 && dy.distance(along_y) < 0.05, "{degrees}°: +X {dx}, +Y {dy}");
+    }
+}
+
+#[test]
+fn a_plane_maps_as_one_undistorted_patch_and_an_obj_is_written_too() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let analysis = analyze_gravel(dir.path(), "gravel", "0,0,64,64");
+    // A 10×10-quad plane two units wide: with 20 texels per unit it is 40 texels across,
+    // and fits in the 64² sample as one patch.
+    let plane = dir.path().join("grid.obj");
+    grid_plane(&plane, 10);
     for ext in ["ply", "obj"] {
         let out = dir.path().join(format!("plane.{ext}"));
         run(&[

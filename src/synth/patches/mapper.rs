@@ -38,4 +38,6 @@ pub(super) struct Mapper<'a> {
     pub flattening: &'a Flattening,
     pub fitter: &'a Fitter,
     pub params: &'a SolerParams,
+    /// The graph face the first patch must hold (`SolerParams::first_face`).
+    pub first_face: Option<u32>,
 }

@@ -65,9 +65,10 @@ pub struct SolerParams {
     /// Largest flattening error |r − 1| a cluster may have and be mapped as one patch
     /// (default 0.1: about 10% more area on the surface than in the sample).
     pub max_flat_error: f32,
-    /// Largest fitting error a cluster may have and be mapped as one patch, as a fraction of
-    /// the error of a random placement (default 0.3). Lower: more, smaller patches with
-    /// fainter seams; higher: larger patches, more visible seams.
+    /// Largest output error a cluster may have and be mapped as one patch (§4.4): the mean
+    /// squared difference along its shared edges with textured neighbours once placed and
+    /// relaxed, as a fraction of two random texels' (default 0.3). Lower: more, smaller
+    /// patches with fainter seams; higher: larger patches, more visible seams.
     pub max_fit_error: f32,
     /// The colour space masks are compared in (default L*a*b*; the paper's is HSV).
     pub colour: ColourSpace,
@@ -78,6 +79,14 @@ pub struct SolerParams {
     pub matching: bool,
     /// Seed of every random choice (default 0).
     pub seed: u64,
+    /// The file face the first patch must hold (§5: the user may choose it); by default
+    /// the flattest cluster of the coarsest level that has a flat enough one.
+    pub first_face: Option<usize>,
+    /// The orientation of the first patch of each piece of surface (§5), in degrees: the
+    /// sample's up (decreasing rows) points this far counter-clockwise, seen from outside,
+    /// from the model's +Y axis as it lies on the patch (+X where the patch faces along Y).
+    /// By default a random angle.
+    pub orientation: Option<f32>,
 }
 
 impl Default for SolerParams {
@@ -92,6 +101,8 @@ impl Default for SolerParams {
             relax: true,
             matching: true,
             seed: 0,
+            first_face: None,
+            orientation: None,
         }
     }
 }
@@ -111,6 +122,9 @@ impl SolerParams {
         }
         if !positive(self.max_flat_error) || !positive(self.max_fit_error) {
             return Err(Error::invalid("the flattening and fitting thresholds must be positive"));
+        }
+        if self.orientation.is_some_and(|d| !d.is_finite()) {
+            return Err(Error::invalid("--orientation: a finite angle in degrees"));
         }
         Ok(())
     }
@@ -138,8 +152,8 @@ pub struct LevelReport {
     pub too_large: usize,
     pub poor_fit: usize,
     pub unreached: usize,
-    /// Median fitting error of the level's fits, as a fraction of a random placement's
-    /// (NaN without fits).
+    /// Median output error of the level's fits (along shared edges, relaxed, as a fraction
+    /// of two random texels'; NaN without fits).
     pub median_fit_error: f32,
     pub seconds: f64,
 }
@@ -183,6 +197,24 @@ pub fn map_mesh(
     let mut seconds = [0.0; 4];
     let started = Instant::now();
     let graph = SurfaceGraph::new(positions, triangles, path)?;
+    let first_face = match params.first_face {
+        None => None,
+        Some(f) if f >= triangles.len() => {
+            return Err(Error::invalid(format!(
+                "--first-face {f}: {} has {} faces (0 to {})",
+                path.display(),
+                triangles.len(),
+                triangles.len().saturating_sub(1)
+            )))
+        }
+        Some(f) if graph.graph_face[f] == NONE => {
+            return Err(Error::invalid(format!(
+                "--first-face {f}: that face of {} has no area; choose another",
+                path.display()
+            )))
+        }
+        Some(f) => Some(graph.graph_face[f]),
+    };
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let hierarchy = hierarchy::Hierarchy::build(&graph, &mut rng);
     seconds[0] = started.elapsed().as_secs_f64();
@@ -199,6 +231,7 @@ pub fn map_mesh(
         flattening: &flattening,
         fitter: &fitter,
         params,
+        first_face,
     };
     let (mapping, levels) = mapper.run(&mut rng, progress)?;
     seconds[3] = started.elapsed().as_secs_f64();

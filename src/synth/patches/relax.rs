@@ -33,15 +33,9 @@ struct Shared {
     theirs: [Vec2; 2],
 }
 
-/// Relaxes the coordinates `uv` (per chart vertex) of cluster `c`.
-pub(super) fn relax(
-    m: &Mapper,
-    c: u32,
-    chart: &Chart,
-    uv: &mut [Vec2],
-    mapping: &Mapping,
-    rng: &mut ChaCha8Rng,
-) {
+/// The edges cluster `c` shares with textured faces outside it, with the neighbours'
+/// coordinates at their ends.
+fn shared_edges(m: &Mapper, c: u32, chart: &Chart, mapping: &Mapping) -> Vec<Shared> {
     let (graph, h) = (m.graph, m.hierarchy);
     let cluster = &h.clusters[c as usize];
     let owner = &h.owner[cluster.level as usize];
@@ -64,6 +58,41 @@ pub(super) fn relax(
             shared.push(Shared { a, b, theirs: [theirs[ka], theirs[kb]] });
         }
     }
+    shared
+}
+
+/// The output fitting error of §4.4 for cluster `c` with coordinates `uv` (per chart
+/// vertex): the mean squared difference (in the fitting space) between its texture and its
+/// textured neighbours' at about one point per texel along every shared edge, as a
+/// fraction of two random texels' (2 in that space). None without a shared edge.
+pub(super) fn output_error(m: &Mapper, c: u32, chart: &Chart, uv: &[Vec2], mapping: &Mapping) -> Option<f32> {
+    let image = &m.fitter.image;
+    let (mut mine, mut theirs) = (vec![0f32; image.channels], vec![0f32; image.channels]);
+    let (mut total, mut n) = (0f64, 0usize);
+    for s in shared_edges(m, c, chart, mapping) {
+        let (ua, ub) = (uv[s.a], uv[s.b]);
+        let steps = (ua.distance(ub).max(s.theirs[0].distance(s.theirs[1])).ceil() as usize).clamp(2, 64);
+        for i in 0..=steps {
+            let t = i as f32 / steps as f32;
+            image.sample(ua.lerp(ub, t), &mut mine);
+            image.sample(s.theirs[0].lerp(s.theirs[1], t), &mut theirs);
+            total += f64::from(mine.iter().zip(&theirs).map(|(a, b)| (a - b) * (a - b)).sum::<f32>());
+            n += 1;
+        }
+    }
+    (n > 0).then(|| (total / n as f64 / 2.0) as f32)
+}
+
+/// Relaxes the coordinates `uv` (per chart vertex) of cluster `c`.
+pub(super) fn relax(
+    m: &Mapper,
+    c: u32,
+    chart: &Chart,
+    uv: &mut [Vec2],
+    mapping: &Mapping,
+    rng: &mut ChaCha8Rng,
+) {
+    let shared = shared_edges(m, c, chart, mapping);
     if shared.is_empty() {
         return;
     }
