@@ -120,6 +120,30 @@ impl<'a> PyramidSearch<'a> {
         self.lists(level, &features, self.params.k)
     }
 
+    /// `(single_level(level), two_level(level))`, in one pass over the candidates where both
+    /// come from the parent's lists. `level + 1` must exist.
+    pub fn single_and_two_level(&mut self, level: usize) -> (Vec<u32>, Vec<u32>) {
+        if !self.searched_through_parent(level) || self.supplies_candidates(level) {
+            return (self.single_level(level), self.two_level(level));
+        }
+        let (map, parent) = (self.pyramid[level].map, self.pyramid[level + 1].map);
+        let (k, tileable, n) = (self.params.k, self.params.tileable, self.params.neighborhood);
+        let parts = [(self.pyramid[level], n), (self.pyramid[level + 1], parent_size(n))];
+        let features = Features::new(&parts, tileable);
+        let parent_lists = self.candidates(level + 1);
+        let (single, two): (Vec<Vec<u32>>, Vec<Vec<u32>>) = (0..map.width * map.height)
+            .into_par_iter()
+            .map(|a| {
+                let cands =
+                    children_of_parent_candidates(map, parent, parent_lists, a, COARSE_CANDIDATES + 1);
+                let (single, two) =
+                    features.nearest_among_both(a, cands.into_iter(), k.saturating_sub(1), map, tileable);
+                (padded(a, &single, k), padded(a, &two, k))
+            })
+            .unzip();
+        (single.concat(), two.concat())
+    }
+
     /// Whether the next finer level takes its candidates from this one's lists.
     fn supplies_candidates(&self, level: usize) -> bool {
         level > 0 && self.searched_through_parent(level - 1)
@@ -168,19 +192,24 @@ impl<'a> PyramidSearch<'a> {
                     }
                     _ => features.nearest_of_all(a, &every_pixel, distances, count, map, tileable),
                 };
-                let mut list = Vec::with_capacity(k);
-                list.push(a as u32);
-                list.extend_from_slice(&nearest);
-                // Tiny samples may not have k − 1 eligible pixels: repeat the last one found.
-                while list.len() < k {
-                    list.push(*list.last().unwrap_or(&(a as u32)));
-                }
-                list.truncate(k.max(1));
-                list
+                padded(a, &nearest, k)
             })
             .flatten_iter()
             .collect()
     }
+}
+
+/// A pixel's list: itself, then its nearest, `k` entries in all.
+fn padded(a: usize, nearest: &[u32], k: usize) -> Vec<u32> {
+    let mut list = Vec::with_capacity(k);
+    list.push(a as u32);
+    list.extend_from_slice(nearest);
+    // Tiny samples may not have k − 1 eligible pixels: repeat the last one found.
+    while list.len() < k {
+        list.push(*list.last().unwrap_or(&(a as u32)));
+    }
+    list.truncate(k.max(1));
+    list
 }
 
 /// The four children of each coarse candidate of `a`'s parent.
@@ -215,6 +244,10 @@ struct Features {
     len: usize,
     labels: Vec<u32>,
     eligible: Vec<bool>,
+    /// Slots of the first part (this level's own neighbourhood), and the pixels eligible by
+    /// it alone: what the single-level search of the same level sees.
+    fine_len: usize,
+    fine_eligible: Vec<bool>,
     table: Vec<f32>,
     textons: usize,
 }
@@ -227,6 +260,7 @@ impl Features {
         let textons: usize = parts.iter().map(|(l, _)| l.textons).sum();
         let mut labels = vec![OUTSIDE; pixels * len];
         let mut eligible = vec![true; pixels];
+        let mut fine_eligible = Vec::new();
         let mut table = vec![0.0; textons * textons];
         let (mut slot, mut base) = (0, 0);
         for (level, size) in parts {
@@ -244,12 +278,20 @@ impl Features {
             }
             slot += size * size;
             base += level.textons;
+            if fine_eligible.is_empty() {
+                fine_eligible = anywhere_if_nowhere(eligible.clone());
+            }
         }
-        if !eligible.iter().any(|&e| e) {
-            // A sample smaller than its neighbourhood: compare the offsets that exist.
-            eligible.iter_mut().for_each(|e| *e = true);
+        let fine_len = parts[0].1 * parts[0].1;
+        Features {
+            len,
+            labels,
+            eligible: anywhere_if_nowhere(eligible),
+            fine_len,
+            fine_eligible,
+            table,
+            textons,
         }
-        Features { len, labels, eligible, table, textons }
     }
 
     /// The table row of each slot of `a`'s neighbourhood that lies inside the sample (the
@@ -284,6 +326,44 @@ impl Features {
             }
         }
         best.into_sorted()
+    }
+
+    /// [`Self::nearest_among`] for the two-level neighbourhoods these features hold and, in
+    /// the same pass, for the single-level ones of their first part: the single-level
+    /// distance is the two-level sum's prefix (the same terms in the same order), so each
+    /// candidate's labels are read once for both lists.
+    fn nearest_among_both(
+        &self,
+        a: usize,
+        candidates: impl Iterator<Item = u32>,
+        count: usize,
+        map: &TextonMap,
+        tileable: bool,
+    ) -> (Vec<u32>, Vec<u32>) {
+        let rows = self.query_rows(a);
+        let (fine_rows, parent_rows) = rows.split_at(rows.partition_point(|(slot, _)| *slot < self.fine_len));
+        let (mut single, mut two) = (Best::new(count), Best::new(count));
+        let bound = |eligible: bool, best: &Best| if eligible { best.bound() } else { f32::NEG_INFINITY };
+        for b in candidates {
+            let single_bound = bound(self.fine_eligible[b as usize], &single);
+            let two_bound = bound(self.eligible[b as usize], &two);
+            let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
+            let Some(fine) = continue_within(fine_rows, cand, single_bound.max(two_bound), -0.0) else {
+                continue;
+            };
+            if adjacent(map, a, b as usize, tileable) {
+                continue;
+            }
+            if fine <= single_bound {
+                single.offer(Scored(fine, b));
+            }
+            if fine <= two_bound {
+                if let Some(d) = continue_within(parent_rows, cand, two_bound, fine) {
+                    two.offer(Scored(d, b));
+                }
+            }
+        }
+        (single.into_sorted(), two.into_sorted())
     }
 
     /// [`Self::nearest_among`] every pixel, the distances summed slot by slot (see
@@ -342,6 +422,15 @@ impl Features {
         }
         by_slot
     }
+}
+
+/// A sample smaller than its neighbourhood has no pixel wholly inside: then every pixel is
+/// a candidate, compared on the offsets that exist.
+fn anywhere_if_nowhere(mut eligible: Vec<bool>) -> Vec<bool> {
+    if !eligible.iter().any(|&e| e) {
+        eligible.iter_mut().for_each(|e| *e = true);
+    }
+    eligible
 }
 
 /// How an exhaustive search sums every pixel's distance to a query.
@@ -470,7 +559,12 @@ const PRUNE_EVERY: usize = 5;
 /// terms are added in slot order from −0.0, as `Iterator::sum` adds them, so the distances
 /// (and the lists' order of ties) are those of summing every slot.
 fn distance_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32) -> Option<f32> {
-    let mut d = -0.0f32;
+    continue_within(rows, cand, bound, -0.0)
+}
+
+/// [`distance_within`] adding on to the partial sum `start` of the slots before `rows`.
+fn continue_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32, start: f32) -> Option<f32> {
+    let mut d = start;
     for chunk in rows.chunks(PRUNE_EVERY) {
         for (slot, row) in chunk {
             d += cand.get(*slot).and_then(|&l| row.get(l as usize)).copied().unwrap_or(0.0);
@@ -732,6 +826,12 @@ mod tests {
                         search.two_level(level),
                         two,
                         "two-level lists of level {level}, tileable {tileable}"
+                    );
+                    let both = search.single_and_two_level(level);
+                    assert_eq!(
+                        both,
+                        (single.clone(), two),
+                        "both lists of level {level}, tileable {tileable}"
                     );
                 }
             }

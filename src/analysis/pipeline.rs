@@ -303,8 +303,12 @@ fn knn_lists(
     let mut search = PyramidSearch::new(&pyramid, knn);
     let lists: Vec<(Vec<u32>, Option<Vec<u32>>)> = (0..levels.len())
         .map(|l| {
-            let single = search.single_level(l);
-            let two = (l + 1 < levels.len()).then(|| search.two_level(l));
+            let (single, two) = if l + 1 < levels.len() {
+                let (single, two) = search.single_and_two_level(l);
+                (single, Some(two))
+            } else {
+                (search.single_level(l), None)
+            };
             progress.advance(1);
             (single, two)
         })
