@@ -155,10 +155,11 @@ pub fn low_rank_stages(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::btf::source::parse_budget;
+    use crate::btf::source::parse_size_env;
 
     #[test]
     fn budgets_parse_with_units_or_turn_off() {
+        let parse_budget = |text| parse_size_env(MEMORY_ENV, text);
         assert_eq!(parse_budget("6G").unwrap().unwrap().0, 6 << 30);
         assert_eq!(parse_budget("512M").unwrap().unwrap().0, 512 << 20);
         assert_eq!(parse_budget("1.5GiB").unwrap().unwrap().0, 3 << 29);

@@ -96,15 +96,16 @@ pub const MEMORY_ENV: &str = "BTFSYNTH_MEMORY";
 /// off). `None` when there is nothing to check against (no /proc/meminfo).
 pub fn memory_budget() -> Result<Option<(u64, String)>> {
     match std::env::var(MEMORY_ENV) {
-        Ok(text) => parse_budget(&text),
+        Ok(text) => parse_size_env(MEMORY_ENV, &text),
         Err(_) => Ok(available_memory().map(|a| {
             (a / 10 * 8, format!("80% of the {:.1} GiB available", a as f64 / (1u64 << 30) as f64))
         })),
     }
 }
 
-/// `6G`, `512M`, `64K`, plain bytes, or `unlimited`.
-pub(crate) fn parse_budget(text: &str) -> Result<Option<(u64, String)>> {
+/// The value `text` of the size variable `name`: `6G`, `512M`, `64K`, plain bytes, or
+/// `unlimited` (`None`); with it, the `NAME=value` that messages quote.
+pub(crate) fn parse_size_env(name: &str, text: &str) -> Result<Option<(u64, String)>> {
     let t = text.trim();
     if t.eq_ignore_ascii_case("unlimited") {
         return Ok(None);
@@ -121,10 +122,10 @@ pub(crate) fn parse_budget(text: &str) -> Result<Option<(u64, String)>> {
     };
     match digits.parse::<f64>() {
         Ok(v) if scale > 0 && v.is_finite() && v > 0.0 => {
-            Ok(Some(((v * scale as f64) as u64, format!("{MEMORY_ENV}={t}"))))
+            Ok(Some(((v * scale as f64) as u64, format!("{name}={t}"))))
         }
         _ => Err(Error::invalid(format!(
-            "{MEMORY_ENV}='{text}': expected a size such as 6G, 512M or a number of bytes, or 'unlimited'"
+            "{name}='{text}': expected a size such as 6G, 512M or a number of bytes, or 'unlimited'"
         ))),
     }
 }

@@ -55,7 +55,25 @@ pub struct Material {
 /// decoded when opened: a lookup is then one read instead of a K-term product. Above it
 /// (e.g. 64×64 texels × 22,801 images, 1.1 GiB) the factors stay and values are computed
 /// on the fly; for such a sample a render reads fewer values than decoding computes.
+/// `BTFSYNTH_DECODE_LIMIT` (a size, as `BTFSYNTH_MEMORY`) overrides it for
+/// [`Material::open`]: `0` keeps every factored sample as factors, `unlimited` decodes
+/// every one.
 pub const DECODE_LIMIT: u64 = 256 << 20;
+
+/// The environment variable that overrides [`DECODE_LIMIT`].
+pub const DECODE_LIMIT_ENV: &str = "BTFSYNTH_DECODE_LIMIT";
+
+/// [`DECODE_LIMIT`], or [`DECODE_LIMIT_ENV`]'s value where it is set (`0` is allowed here:
+/// never decode).
+pub fn decode_limit() -> Result<u64> {
+    match std::env::var(DECODE_LIMIT_ENV) {
+        Err(_) => Ok(DECODE_LIMIT),
+        Ok(text) if text.trim() == "0" => Ok(0),
+        Ok(text) => {
+            Ok(crate::btf::source::parse_size_env(DECODE_LIMIT_ENV, &text)?.map_or(u64::MAX, |(b, _)| b))
+        }
+    }
+}
 
 /// The material's values.
 enum Texels {
@@ -123,11 +141,18 @@ impl Material {
     }
 
     /// The material of an analysis directory (`images.npy`, `directions.npy`, and whether
-    /// it was analysed as tileable).
+    /// it was analysed as tileable); a factored sample is decoded up to [`decode_limit`].
     pub fn open(analysis_dir: &Path) -> Result<Material> {
+        Material::open_within(analysis_dir, decode_limit()?)
+    }
+
+    /// [`Material::open`], decoding a factored sample only if its values take at most
+    /// `decode_limit` bytes.
+    pub fn open_within(analysis_dir: &Path, decode_limit: u64) -> Result<Material> {
         let manifest = store::read_manifest(analysis_dir)?;
         if manifest.sample.is_some() && !analysis_dir.join("images.npy").exists() {
-            let mut material = Material::from_factors(store::read_factors(analysis_dir, &manifest)?)?;
+            let factors = store::read_factors(analysis_dir, &manifest)?;
+            let mut material = Material::from_factors_within(factors, decode_limit)?;
             material.tileable = manifest.params.tileable;
             return Ok(material);
         }
@@ -164,9 +189,16 @@ impl Material {
     /// The material of a factored sample: decoded texel-major when that takes at most
     /// [`DECODE_LIMIT`] bytes, else the factors themselves (see [`Material`]).
     pub fn from_factors(f: FactoredStack) -> Result<Material> {
+        Material::from_factors_within(f, DECODE_LIMIT)
+    }
+
+    /// [`Material::from_factors`] with another limit on the decoded values' bytes.
+    pub fn from_factors_within(f: FactoredStack, decode_limit: u64) -> Result<Material> {
         let (w, h, n) = (f.width(), f.height(), f.len());
         let decoded_bytes = (w * h * n * 3 * 4) as u64;
-        if decoded_bytes > DECODE_LIMIT {
+        // A raised limit never decodes beyond the memory budget: the factors always fit.
+        let budget = crate::btf::source::memory_budget()?.map_or(u64::MAX, |(b, _)| b);
+        if decoded_bytes > decode_limit.min(budget) {
             let pairs = f.pairs().to_vec();
             return Material::with_texels(w, h, pairs, Texels::Factors(Box::new(f)));
         }
