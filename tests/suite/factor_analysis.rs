@@ -337,3 +337,76 @@ fn an_analysis_that_would_not_fit_in_memory_is_refused_before_any_work() {
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     assert!(String::from_utf8_lossy(&run.stderr).contains("from the file's factors"));
 }
+
+/// The peak that `analyze ARGS` under a 1-byte budget says it would need, in MiB.
+fn estimated_mib(args: &[String]) -> f64 {
+    let run =
+        Command::new(env!("CARGO_BIN_EXE_btfsynth")).args(args).env("BTFSYNTH_MEMORY", "1").output().unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    let figure = stderr.split("would need about ").nth(1).unwrap_or_else(|| panic!("{stderr}"));
+    let (value, unit) = figure.split_once(' ').unwrap();
+    value.parse::<f64>().unwrap() * if unit.starts_with("GiB") { 1024.0 } else { 1.0 }
+}
+
+#[test]
+fn an_image_folder_too_large_to_decode_is_streamed_from_its_files() {
+    // Issue #21's 6,561-image folders: when the decoded stack does not fit the budget,
+    // `analyze` streams the folder's images (two passes over the files) into a basis, and
+    // that basis holds the images.
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("pebbles");
+    btfsynth::btf::write::write_stack(
+        pebbles(),
+        &folder,
+        btfsynth::btf::write::ImageFormat::Exr,
+        None,
+        false,
+        &Silent,
+    )
+    .unwrap();
+    let out = dir.path().join("analysis");
+    let args = |extra: &[&str]| {
+        let (folder, out) = (folder.to_str().unwrap(), out.to_str().unwrap());
+        let common = ["analyze", folder, "-o", out, "--textons", "8", "--levels", "1"];
+        common.iter().chain(extra).map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    let auto_args = args(&[]);
+    let (decoded, streamed) = (estimated_mib(&args(&["--decoded"])), estimated_mib(&auto_args));
+    eprintln!("estimates: decoded {decoded} MiB, streamed {streamed} MiB");
+    assert!(streamed + 1.0 < decoded, "streaming needs less: {streamed} vs {decoded} MiB");
+    let budget = format!("{}M", ((streamed + decoded) / 2.0).ceil());
+    let run = Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+        .args(&auto_args)
+        .env("BTFSYNTH_MEMORY", &budget)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(stderr.contains("streamed"), "{stderr}");
+    let manifest = store::read_manifest(&out).unwrap();
+    let basis = manifest.basis.as_ref().expect("a streamed analysis records its basis");
+    // 96 sketch columns of 256 full-rank images: most of their centred energy, not all.
+    assert_eq!(basis.kind, "streamed");
+    assert!(basis.captured > 0.9, "{basis:?}");
+    assert!(!entries(&out).contains(&"images.npy".to_string()), "the sample is stored as factors");
+    // The stored sample reads back as the folder's images, within what the basis misses
+    // (a share of the centred energy, so less of the whole).
+    let (images, stored) = (pebbles(), SampleImages::open(&out).unwrap());
+    let (mut error, mut energy) = (0f64, 0f64);
+    for i in (0..images.len()).step_by(5) {
+        for (x, y) in [(0, 0), (7, 19), (31, 31), (22, 4)] {
+            let (a, b) = (images.rgb(i, x, y), stored.rgb(i, x, y));
+            for c in 0..3 {
+                error += ((a[c] - b[c]) as f64).powi(2);
+                energy += (a[c] as f64).powi(2);
+            }
+        }
+    }
+    let relative = error / energy;
+    eprintln!(
+        "stored sample: relative squared error {relative:.5}, basis misses {:.5}",
+        1.0 - basis.captured
+    );
+    assert!(relative < 1.0 - basis.captured, "relative squared error {relative}");
+}
