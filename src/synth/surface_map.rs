@@ -77,8 +77,29 @@ pub struct SurfacePyramid {
     pub seconds: [f64; 3],
 }
 
-/// Refuses finest meshes beyond this many vertices (about 1.5 GB of templates).
+/// Refuses finest meshes beyond this many vertices (about 14 GB at synthesis' peak).
 pub const MAX_VERTICES: usize = 3_000_000;
+
+/// What one vertex of the finest mesh costs at synthesis' peak, with the coarser levels,
+/// their templates and the engine's state, at the default 7×7 neighbourhood: measured
+/// 1.07 GiB for 250,000 vertices (bunny-37k.off from the full 400² × 22,801-image
+/// analysis, `benches/big_btf.sh --use`) and 1.11 GB from a 64² BTF (`benches/speed.sh`).
+pub const BYTES_PER_VERTEX: u64 = 4_600;
+
+/// Refuses a finest mesh of about `vertices` whose synthesis would not fit the memory
+/// budget ([`crate::btf::source::memory_budget`]), before any remeshing.
+fn check_memory(vertices: f64) -> Result<()> {
+    use crate::analysis::memory::gib;
+    let need = (vertices * BYTES_PER_VERTEX as f64) as u64;
+    match crate::btf::source::memory_budget()? {
+        Some((limit, source)) if need > limit => Err(Error::invalid(format!(
+            "that density needs about {vertices:.0} vertices, about {} at synthesis' peak, more than the {} budget ({source}); lower --scale, --texels-across or --vertices",
+            gib(need),
+            gib(limit)
+        ))),
+        _ => Ok(()),
+    }
+}
 
 /// Remeshes `mesh` into `levels` levels and builds every level's templates and links.
 pub fn build_pyramid(
@@ -109,6 +130,7 @@ pub fn build_pyramid_cached(
             "that density needs about {estimate:.0} vertices (the limit is {MAX_VERTICES}); lower --scale, --texels-across or --vertices"
         )));
     }
+    check_memory(estimate)?;
     let mut seconds = [0.0; 3];
     let mut meshes = Vec::with_capacity(levels);
     for l in 0..levels {

@@ -363,3 +363,29 @@ fn a_photo_in_place_of_an_analysis() {
     assert_one_line_error(&r, "not an analysis directory (make one with `btfsynth analyze");
     assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 }
+
+#[test]
+fn a_surface_synthesis_that_would_not_fit_in_memory_is_refused_before_remeshing() {
+    // Issue #21's reliability rule for synthesis: the finest mesh's vertex count sets the
+    // peak (benches/big_btf.sh measured it), so a density beyond the budget is one line,
+    // not a run the kernel kills.
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = common::analyze_gravel_crop(dir.path(), "gravel");
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+    let out = dir.path().join("bunny.ply");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+        .args([
+            "synth",
+            analysis.to_str().unwrap(),
+            mesh,
+            "--vertices",
+            "200000",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .env("BTFSYNTH_MEMORY", "100M")
+        .output()
+        .unwrap();
+    assert_one_line_error(&run, "at synthesis' peak, more than the 100 MiB budget (BTFSYNTH_MEMORY=100M)");
+    assert!(!out.exists(), "nothing is written");
+}
