@@ -172,8 +172,8 @@ if [ "$use" = 1 ]; then
   echo "|---|---|---|---|"
   printf '%s\n' "${use_rows[@]}"
 
-  # The crossover: a 1024² render of a 64² plane synthesis from a crop's analysis, the
-  # sample decoded when opened against every value computed from the factors.
+  # The crossover: a 1024² render of a 20k-vertex bunny synthesized from a crop's analysis,
+  # the sample decoded when opened against every value computed from the factors.
   echo
   echo "| crop (22,801 images) | decoded values | render, decoded when opened | render, from the factors |"
   echo "|---|---|---|---|"
@@ -182,10 +182,10 @@ if [ "$use" = 1 ]; then
     $bin -q analyze "$out/big400.btf" --crop 0,0,$side,$side --levels 2 --force -o "$out/$name.analysis"
     $bin -q synth "$out/$name.analysis" "$mesh" --vertices 20000 --force -o "$out/$name.ply"
     BTFSYNTH_DECODE_LIMIT=unlimited timed "$name-decoded" render "$out/$name.ply" --size 1024x1024 --force -o "$out/$name-decoded"
-    local_decoded="$wall, $peak"
+    decoded_figures="$wall, $peak"
     BTFSYNTH_DECODE_LIMIT=0 timed "$name-factors" render "$out/$name.ply" --size 1024x1024 --force -o "$out/$name-factors"
     printf '| %d² | %.2f GiB | %s | %s |\n' "$side" "$(echo "$side * $side * 22801 * 12 / 1073741824" | bc -l)" \
-      "$local_decoded" "$wall, $peak"
+      "$decoded_figures" "$wall, $peak"
   done
 fi
 

@@ -51,14 +51,18 @@ pub struct Material {
     pub tileable: bool,
 }
 
-/// Factored samples whose texel-major f32 values take at most this many bytes are
-/// decoded when opened: a lookup is then one read instead of a K-term product. Above it
-/// (e.g. 64×64 texels × 22,801 images, 1.1 GiB) the factors stay and values are computed
-/// on the fly; for such a sample a render reads fewer values than decoding computes.
+/// Factored samples whose texel-major f32 values take at most this many bytes (and fit
+/// the memory budget) are decoded when opened: a lookup is then one read instead of a
+/// K-term product per channel. Above it (e.g. the full 400² × 22,801 images, 41 GiB) the
+/// factors stay and values are computed on the fly. Time always favours decoding where it
+/// fits: a 1024² render with shadows (4 samples per pixel, 32 components per channel) from
+/// 32², 48² and 64² crops of 22,801 images took 2.7, 3.5 and 4.7 s decoded (0.26–1.04 GiB
+/// of values) against 18.6, 18.3 and 20.6 s from the factors (`benches/big_btf.sh --use`),
+/// so the limit is set by memory: 2 GiB, which keeps a render's peak near 2.3 GB.
 /// `BTFSYNTH_DECODE_LIMIT` (a size, as `BTFSYNTH_MEMORY`) overrides it for
 /// [`Material::open`]: `0` keeps every factored sample as factors, `unlimited` decodes
-/// every one.
-pub const DECODE_LIMIT: u64 = 256 << 20;
+/// every one that fits the memory budget.
+pub const DECODE_LIMIT: u64 = 2 << 30;
 
 /// The environment variable that overrides [`DECODE_LIMIT`].
 pub const DECODE_LIMIT_ENV: &str = "BTFSYNTH_DECODE_LIMIT";
