@@ -4,8 +4,11 @@
 # (128² crops) and one generated BTF (64², 81 directions). Writes, under OUT:
 #   presets.md       one row per preset and material: seconds per stage (remesh, frames,
 #                    templates, synthesis per level) and every quality measure of `btfsynth eval`
+#   soler2002.md     the same materials mapped by `--method soler2002` onto the original
+#                    bunny (texture coordinates, no remesh): seconds, eval's patch energy,
+#                    colour χ² and seam figure (border windows' energy over the interior's)
 #   contact.png      rows: the sample (head-on, light at 45°, `btfsynth relight`), then the
-#                    presets; columns: materials (rendered with `btfsynth render`)
+#                    presets and soler2002; columns: materials (rendered with `btfsynth render`)
 # Needs jq and python3 with Pillow (for the contact sheet).
 #   benches/presets.sh [--out DIR] [--vertices N]
 set -euo pipefail
@@ -72,7 +75,29 @@ for preset in $presets; do
 done
 cat "$table"
 
-python3 - "$out" "${materials[*]}" $presets <<'EOF'
+# Soler et al. 2002, the method beside the presets: the sample's own texels mapped onto the
+# original mesh by texture coordinates, rendered and scored like the presets' results.
+soler_table="$out/soler2002.md"
+{
+  echo "| method | material | faces | seconds | patch energy | colour χ² | seam ratio (border / interior windows) |"
+  echo "|---|---|---|---|---|---|---|"
+} >"$soler_table"
+for m in "${materials[@]}"; do
+  ply="$out/soler2002-$m.ply"
+  $bin -q synth "$out/$m.analysis" data/bunny-1k8.obj --method soler2002 \
+    --report "$out/soler2002-$m.report.json" --force -o "$ply"
+  $bin eval "$out/$m.analysis" "$ply" --json >"$out/soler2002-$m.eval.json"
+  $bin -q render "$ply" --size 320x320 --format png --force -o "$out/render-soler2002-$m"
+  jq -r --arg m "$m" --slurpfile q "$out/soler2002-$m.eval.json" '
+    def f: . * 10000 | round / 10000;
+    ["soler2002", $m, (.faces | tostring), (.seconds * 100 | round / 100 | tostring),
+     ($q[0].probes[0].patch_energy | f | tostring), ($q[0].probes[0].colour_chi2 | f | tostring),
+     (if $q[0].seams then ($q[0].seams.border / $q[0].seams.interior * 100 | round / 100 | tostring) else "–" end)]
+    | "| " + join(" | ") + " |"' "$out/soler2002-$m.report.json" >>"$soler_table"
+done
+cat "$soler_table"
+
+python3 - "$out" "${materials[*]}" $presets soler2002 <<'EOF'
 import glob, os, sys
 from PIL import Image, ImageDraw
 out, materials, presets = sys.argv[1], sys.argv[2].split(), sys.argv[3:]
