@@ -29,7 +29,9 @@ pub struct SeamQuality {
     pub border: f64,
     /// Mean patch energy of windows inside one patch.
     pub interior: f64,
+    /// How many windows straddle a border.
     pub border_windows: usize,
+    /// How many windows lie inside one patch.
     pub interior_windows: usize,
 }
 
@@ -186,8 +188,9 @@ pub struct Seam {
     pub faces: Vec<u32>,
     /// Its length on the surface, in model units.
     pub length: f32,
-    /// Its mean jump, as [`border_discontinuity`] measures it, over `points` points.
+    /// Its mean jump, as [`border_discontinuity`] measures it.
     pub jump: f64,
+    /// The points the jump is the mean of (9 per shared edge).
     pub points: usize,
 }
 
@@ -310,7 +313,6 @@ pub fn close_up(
 }
 
 /// The window around face `f`; None if part of it lies off the surface.
-#[allow(clippy::too_many_arguments)]
 #[allow(clippy::too_many_arguments)]
 fn window(
     graph: &SurfaceGraph,
@@ -478,12 +480,10 @@ mod tests {
                     let at = centre - Vec2::splat(3.0)
                         + Vec2::new((i % PATCH_SIDE) as f32, (i / PATCH_SIDE) as f32);
                     let want = bilinear(&sample, at, false);
-                    for c in 0..3 {
-                        let got = w.values[i * 3 + c];
+                    for (&got, &want) in w.values[i * 3..i * 3 + 3].iter().zip(&want) {
                         assert!(
-                            (got - want[c]).abs() < 1e-3,
-                            "mirrored {mirrored}, face {f}, pixel {i}: {got} vs {}",
-                            want[c]
+                            (got - want).abs() < 1e-3,
+                            "mirrored {mirrored}, face {f}, pixel {i}: {got} vs {want}"
                         );
                     }
                 }
