@@ -5,10 +5,13 @@
 //!
 //!   cargo run --release --example soler_bench -- PHOTO MESH [--crop N] [--across K]
 //!       [--threshold T] [--distortion D] [--band B] [--colour lab|hsv|rgb] [--no-relax]
-//!       [--seed S] [--no-baseline]
+//!       [--seed S] [--seams N] [--close-ups SHEET.png] [--no-baseline]
 //!
 //! The sample is the photograph's top-left N×N crop (default 128), mapped at K sample
-//! widths across the mesh's largest side (default 4).
+//! widths across the mesh's largest side (default 4). `--seams N` lists the N seams (borders
+//! between two patches) of largest jump, at least a texel long (default 10); `--close-ups`
+//! writes a sheet of the matched mapping's listed seams, 41 texels around each (borders red,
+//! left to right, top to bottom in the list's order, 4 pixels per texel).
 
 use btfsynth::btf::image_io::srgb_to_linear;
 use btfsynth::eval::Picture;
@@ -16,8 +19,10 @@ use btfsynth::synth::patches::chart::Flattening;
 use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
 use btfsynth::synth::patches::graph::SurfaceGraph;
 use btfsynth::synth::patches::hierarchy::Hierarchy;
-use btfsynth::synth::patches::quality::{border_discontinuity, seam_quality};
-use btfsynth::synth::patches::{map_mesh, SolerParams};
+use btfsynth::synth::patches::quality::{
+    border_discontinuity, close_up, seam_windows, seams, split, Seam, SeamWindow,
+};
+use btfsynth::synth::patches::{map_mesh, PatchMapping, SolerParams};
 use rand::SeedableRng;
 use std::path::Path;
 use std::time::Instant;
@@ -55,6 +60,8 @@ fn main() {
             |(lo, hi), &p| (lo.min(p), hi.max(p)),
         );
     let scale = across * side as f32 / (hi - lo).max_element();
+    let sheet = flag("--close-ups");
+    let worst: usize = flag("--seams").map_or(10, |v| v.parse().expect("--seams N"));
     let defaults = SolerParams::default();
     let params = SolerParams {
         texels_per_unit: scale,
@@ -111,7 +118,7 @@ fn main() {
         )
         .expect("mapped");
         let seconds = started.elapsed().as_secs_f64();
-        let q = seam_quality(
+        let windows = seam_windows(
             &mesh.positions,
             &mesh.triangles,
             &m.corner_uv,
@@ -122,6 +129,30 @@ fn main() {
             (3000, 1),
         )
         .expect("measured");
+        let q = split(&windows);
+        breakdown(&windows, &m.level);
+        let seams =
+            seams(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit).expect("measured");
+        let listed = worst_seams(&seams, &windows, &m, scale, worst);
+        if let Some(path) = sheet.as_ref().filter(|_| matching) {
+            let pictures: Vec<Picture> = listed
+                .iter()
+                .filter_map(|&f| {
+                    close_up(
+                        &mesh.positions,
+                        &mesh.triangles,
+                        &m.corner_uv,
+                        &m.cluster,
+                        &sample,
+                        false,
+                        scale,
+                        (f, 41),
+                    )
+                    .expect("close-up")
+                })
+                .collect();
+            write_sheet(&pictures, path);
+        }
         let (jump, n) =
             border_discontinuity(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit)
                 .expect("measured");
@@ -158,4 +189,83 @@ fn main() {
             r.border / r.interior
         );
     }
+}
+
+/// Border and interior windows' energies by the stretch of the faces they show and by the
+/// level of the patch at their centre: what part of the ratio is distortion, not seams.
+fn breakdown(windows: &[SeamWindow], level: &[u8]) {
+    let line = |name: String, of: &dyn Fn(&SeamWindow) -> bool| {
+        let part: Vec<&SeamWindow> = windows.iter().filter(|w| of(w)).collect();
+        let q = split(&part.iter().map(|&w| w.clone()).collect::<Vec<_>>());
+        println!(
+            "    {name:<22} border {:.5} ({:>4}), interior {:.5} ({:>4}), ratio {:.2}",
+            q.border,
+            q.border_windows,
+            q.interior,
+            q.interior_windows,
+            q.border / q.interior
+        );
+    };
+    let bins = [0.0, 0.02, 0.05, 0.1, 0.2, f32::INFINITY];
+    for pair in bins.windows(2) {
+        line(format!("stretch {:.2}..{:.2}", pair[0], pair[1]), &|w| {
+            w.stretch >= pair[0] && w.stretch < pair[1]
+        });
+    }
+    for (lo, hi) in [(0.0, 0.1), (0.1, 0.25), (0.25, 1.0)] {
+        line(format!("others {lo:.2}..{hi:.2}"), &|w| {
+            w.patches.len() == 1 || (w.others > lo && w.others <= hi)
+        });
+    }
+    let mut levels: Vec<u8> = windows.iter().map(|w| level[w.face as usize]).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    for l in levels {
+        line(format!("centre on level {l}"), &|w| level[w.face as usize] == l);
+    }
+}
+
+/// Prints the `n` seams of largest jump at least a texel long, with the energy of the
+/// windows that show both their patches; returns a face on each.
+fn worst_seams(seams: &[Seam], windows: &[SeamWindow], m: &PatchMapping, scale: f32, n: usize) -> Vec<u32> {
+    let mut order: Vec<&Seam> = seams.iter().filter(|s| s.length * scale >= 1.0).collect();
+    order.sort_by(|a, b| b.jump.total_cmp(&a.jump));
+    let level = |c: u32| m.cluster.iter().position(|&k| k == c).map_or(0, |f| m.level[f]);
+    println!("  {} seams; the {} of largest jump:", seams.len(), n.min(order.len()));
+    for s in order.iter().take(n) {
+        let (a, b) = s.patches;
+        let on: Vec<&SeamWindow> =
+            windows.iter().filter(|w| w.patches.contains(&a) && w.patches.contains(&b)).collect();
+        let energy = on.iter().map(|w| w.energy).sum::<f64>() / on.len().max(1) as f64;
+        let stretch = on.iter().map(|w| w.stretch).fold(0f32, f32::max);
+        println!(
+            "    patches {a} (level {}) | {b} (level {}): {:.0} texels, {} edges, jump {:.3}; {} windows, energy {:.5}, stretch up to {:.2}; face {}",
+            level(a), level(b), s.length * scale, s.faces.len(), s.jump, on.len(), energy, stretch, s.faces[0]
+        );
+    }
+    order.iter().take(n).map(|s| s.faces[0]).collect()
+}
+
+/// The close-ups side by side, five to a row, each texel 4 pixels.
+fn write_sheet(pictures: &[Picture], path: &str) {
+    const ZOOM: usize = 4;
+    let Some(side) = pictures.first().map(|p| p.width) else { return };
+    let (columns, gap) = (5.min(pictures.len()), 4);
+    let rows = pictures.len().div_ceil(columns);
+    let cell = side * ZOOM + gap;
+    let mut sheet = image::RgbImage::new((columns * cell) as u32, (rows * cell) as u32);
+    for (i, p) in pictures.iter().enumerate() {
+        let (x0, y0) = ((i % columns) * cell, (i / columns) * cell);
+        for y in 0..side * ZOOM {
+            for x in 0..side * ZOOM {
+                let c =
+                    p.rgb[(y / ZOOM) * side + x / ZOOM].map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+                sheet.put_pixel((x0 + x) as u32, (y0 + y) as u32, image::Rgb(c));
+            }
+        }
+    }
+    let tmp = format!("{path}.tmp.png");
+    sheet.save(&tmp).expect("sheet");
+    std::fs::rename(&tmp, path).expect("sheet");
+    println!("  close-ups of {} seams in {path}", pictures.len());
 }
