@@ -1,7 +1,7 @@
 //! The wgpu renderer: the same scene, material and per-vertex blends as the CPU renderer
 //! ([`crate::render::cpu`]), drawn by rasterisation with a shadow map. Blends are computed
 //! on the CPU each frame ([`Scene::vertex_blends`]) and uploaded; `shaders/surface.wgsl` only
-//! fetches and sums texels.
+//! fetches texels (or computes them from the sample's factors) and sums them.
 //!
 //! [`GpuRenderer`] renders offscreen into [`Frame`]s; the viewer
 //! ([`crate::render::viewer`]) draws the same [`passes::Passes`] into a window.

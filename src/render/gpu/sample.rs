@@ -127,3 +127,22 @@ pub fn estimate(
     e.add("frame buffers", pixels * (target.samples as u64 * (colour + 4) + 2 * colour));
     e
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ubo2014_atlas_is_thirty_gigabytes_and_its_factors_seventy_megabytes() {
+        // 400² texels × 151 × 151 images in 8192² layers of Rgba16Float: 20 × 20 tiles of
+        // 400² per layer, 58 layers.
+        let layout = AtlasLayout::new(22_801, (400, 400), 8192, 256).unwrap();
+        let atlas = Values::Atlas { layout, format: wgpu::TextureFormat::Rgba16Float };
+        assert_eq!(atlas.bytes().1, 58 * 8000 * 8000 * 8);
+        assert!(atlas.bytes().1 > 100 * ATLAS_LIMIT);
+        let colour = factors::colour_uniform(crate::btf::colour::ColourModel::LogYUvOverY, false).unwrap();
+        let factors = Values::Factors { layout: FactorLayout::new((400, 400), 22_801, [32; 3]), colour };
+        assert_eq!(factors.bytes().1, 25 * 400 * 400 * 16 + 22_801 * 25 * 16);
+        assert_eq!(factors.describe(), "sample factors, 70 MiB");
+    }
+}
