@@ -1,8 +1,9 @@
 // The surface pass. Which images a vertex blends and their weights come from the CPU
 // (Scene::vertex_blends, the one shading core), and so does the environment's share (per
 // vertex a patch of environment-lit texels, Ambient::compute); this shader only fetches
-// texels and sums, mirroring Material::texel, Material::shade, Scene::predict_uv,
-// Ambient::at and the CPU renderer's Shading::ray.
+// texels (or computes them from the sample's factors, FactoredStack::rgb) and sums,
+// mirroring Material::texel, Material::shade, Scene::predict_uv, Ambient::at and the CPU
+// renderer's Shading::ray.
 
 struct Uniforms {
     light_view_proj: mat4x4<f32>,
@@ -16,13 +17,20 @@ struct Uniforms {
     // mode (0 vertex, 1 pixel), display (0 BTF / first image, 1 texton false colour),
     // shadows (0/1), tileable (0/1)
     flags: vec4<u32>,
-    // sample image width, height; tiles per atlas row; tiles per layer
+    // sample width, height in texels (z, w unused)
     atlas: vec4<u32>,
     // x: one sample texel in model units; y: normal offset of shadow lookups (model units);
     // z: one shadow-map texel in uv units
     params: vec4<f32>,
     // x: strength of the directional light; y: 1 to add the environment's patches
     lighting: vec4<f32>,
+    // the sample as factors (w = 1; 0: an atlas of images): groups of four components of
+    // channels 0, 1, 2 (FactorLayout)
+    factors: vec4<u32>,
+    // the factors' colour model: its number (ColourModel::id), 1 if log-encoded
+    colour_model: vec4<u32>,
+    // the affine map after the model's own decoding: rows R, G, B (xyz), offset (w)
+    colour_rows: array<vec4<f32>, 3>,
 };
 
 struct Vertex {
@@ -44,11 +52,13 @@ struct Blend {
 @group(0) @binding(1) var<storage, read> vertices: array<Vertex>;
 @group(0) @binding(2) var<storage, read> corners: array<u32>;
 @group(0) @binding(3) var<storage, read> blends: array<Blend>;
+// the atlas of sample images, or the texel factors (layer j: texel (x, y)'s group j)
 @group(0) @binding(4) var images: texture_2d_array<f32>;
 @group(0) @binding(5) var shadow_map: texture_depth_2d;
 @group(0) @binding(6) var shadow_sampler: sampler_comparison;
-// per image: layer, then the texel origin of its tile (AtlasLayout::place)
-@group(0) @binding(7) var<storage, read> places: array<vec4<i32>>;
+// per image: for an atlas its layer, then the texel origin of its tile (AtlasLayout::place);
+// for factors its groups of image factors, then a vec4 whose x is its scale
+@group(0) @binding(7) var<storage, read> places: array<vec4<f32>>;
 // per vertex, its environment patch: first texel x, y; width | height << 16; offset into
 // patch_texels (in texels)
 @group(0) @binding(8) var<storage, read> patches: array<vec4<i32>>;
@@ -100,22 +110,95 @@ fn footprint(uv: vec2<f32>) -> Footprint {
     return out;
 }
 
+// One texel of an image: read from the atlas, or computed from the factors.
+fn value(image: u32, o: vec2<i32>, layer: i32, x: i32, y: i32) -> vec3<f32> {
+    if u.factors.w != 0u {
+        return factor_value(image, vec2<i32>(x, y));
+    }
+    return textureLoad(images, o + vec2<i32>(x, y), layer, 0).rgb;
+}
+
 // Material::texel: bilinear, integers are texel centres; image's tile from the table of
 // places (AtlasLayout::place) rather than divisions.
 fn texel(image: u32, at: Footprint) -> vec3<f32> {
-    let place = places[image];
-    let o = place.yz;
-    let layer = place.x;
-    let a = textureLoad(images, o + vec2<i32>(at.x.x, at.y.x), layer, 0).rgb;
+    var o = vec2<i32>(0);
+    var layer = 0;
+    if u.factors.w == 0u {
+        let place = places[image];
+        o = vec2<i32>(i32(place.y), i32(place.z));
+        layer = i32(place.x);
+    }
+    let a = value(image, o, layer, at.x.x, at.y.x);
     if at.f.x == 0.0 && at.f.y == 0.0 {
         return a;
     }
-    let b = textureLoad(images, o + vec2<i32>(at.x.y, at.y.x), layer, 0).rgb;
-    let c = textureLoad(images, o + vec2<i32>(at.x.x, at.y.y), layer, 0).rgb;
-    let d = textureLoad(images, o + vec2<i32>(at.x.y, at.y.y), layer, 0).rgb;
+    let b = value(image, o, layer, at.x.y, at.y.x);
+    let c = value(image, o, layer, at.x.x, at.y.y);
+    let d = value(image, o, layer, at.x.y, at.y.y);
     let top = mix(a, b, at.f.x);
     let bottom = mix(c, d, at.f.x);
     return mix(top, bottom, at.f.y);
+}
+
+// Must equal DRR_EPS (factors::SHADER_EPS).
+const EPS: f32 = 1e-5;
+
+// K-term dot product of `groups` groups of four, from texture layer (and image table row
+// offset) `first`.
+fn dot_groups(row: u32, first: u32, groups: u32, p: vec2<i32>) -> f32 {
+    var sum = 0.0;
+    for (var j = first; j < first + groups; j++) {
+        sum += dot(places[row + j], textureLoad(images, p, i32(j), 0));
+    }
+    return sum;
+}
+
+// FactoredStack::rgb: image's three channel values at texel p, then decode_channels.
+fn factor_value(image: u32, p: vec2<i32>) -> vec3<f32> {
+    let g = u.factors;
+    let row = image * (g.x + g.y + g.z + 1u);
+    let v = vec3<f32>(dot_groups(row, 0u, g.x, p), dot_groups(row, g.x, g.y, p), dot_groups(row, g.x + g.y, g.z, p));
+    var rgb = colour_to_rgb(v);
+    if u.colour_model.y != 0u {
+        rgb = exp(rgb) - EPS;
+    }
+    return rgb * places[row + g.x + g.y + g.z].x;
+}
+
+// btflib's signed logarithm decoding (ColourModel::LogYLogUv).
+fn signed_log(x: f32) -> f32 {
+    return select(-1.0, 1.0, x >= 0.0) * exp(abs(x) + log(EPS));
+}
+
+// ColourModel::to_rgb for every model but Lab (refused on the CPU): the model's own
+// decoding, then the affine map of the uniforms (identity where the model has none).
+fn colour_to_rgb(v: vec3<f32>) -> vec3<f32> {
+    var w = v;
+    switch u.colour_model.x {
+        case 5u: {
+            w = vec3<f32>(1.0 - v.y - v.z, v.y, v.z) * v.x;
+        }
+        case 6u: {
+            let sum = 3.0 * v.x;
+            w = vec3<f32>(sum - (v.y + v.z) / 3.0, sum + v.y * sum, sum + v.z * sum);
+        }
+        case 9u: {
+            w = vec3<f32>(exp(v.x) - EPS, v.y, v.z);
+        }
+        case 10u: {
+            w = vec3<f32>(exp(v.x) - EPS, signed_log(v.y), signed_log(v.z));
+        }
+        case 11u: {
+            let y = exp(v.x) - EPS;
+            w = vec3<f32>(y, v.y * (y + EPS), v.z * (y + EPS));
+        }
+        case 12u: {
+            w = exp(v) - EPS;
+        }
+        default: {}
+    }
+    let r = u.colour_rows;
+    return vec3<f32>(dot(r[0].xyz, w), dot(r[1].xyz, w), dot(r[2].xyz, w)) + vec3<f32>(r[0].w, r[1].w, r[2].w);
 }
 
 // A colour per texton label, for the false-colour display.

@@ -3,10 +3,11 @@
 use super::progress::Bars;
 use super::shots::{LightingArgs, OutputArgs, ShotArgs};
 use anyhow::Result;
+use btfsynth::analysis::store;
 use btfsynth::progress::Progress;
-use btfsynth::render::gpu::{Display, GpuLighting, GpuRenderer};
+use btfsynth::render::gpu::{Display, GpuLighting, GpuRenderer, GpuSample, Upload};
 use btfsynth::render::{viewer, Material, SequenceWriter};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -16,7 +17,10 @@ btfsynth view [OPTIONS] --headless -o <DIR> <SURFACE>",
     after_help = "Examples:\n  btfsynth view bunny.ply\n  \
 btfsynth view bunny.ply --headless -o frames/ --frames 24 --size 1024x1024 --format png\n\n\
 Without --headless a window opens; its keys are printed when it does. The window shows the frame \
-rate, the light and the mode; S saves the frame into --save-dir."
+rate, the light and the mode; S saves the frame into --save-dir.\n\n\
+The GPU memory the scene needs is counted first: a scene over the limit (BTFSYNTH_GPU_MEMORY, e.g. 6G; \
+by default btfsynth's memory budget on a software adapter, else at most 4 GiB) or over the adapter's \
+texture and buffer limits is refused with one line."
 )]
 pub struct ViewArgs {
     #[command(flatten)]
@@ -42,6 +46,48 @@ pub struct ViewArgs {
     /// Where the window's S key saves frames (view-0000.png, view-0001.png, …).
     #[arg(long, value_name = "DIR", default_value = ".")]
     save_dir: PathBuf,
+    /// What of the sample goes to the GPU: `images` (an atlas of every image: one read per
+    /// value), `factors` (an analysis that stores its sample as factors, e.g. of a .btf file:
+    /// the shader computes each value, a K-term product per channel), or `auto` (the images
+    /// while their atlas takes at most 256 MiB, else the factors where there are any).
+    #[arg(long, value_enum, default_value_t = UploadArg::Auto)]
+    upload: UploadArg,
+}
+
+/// `--upload` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum UploadArg {
+    /// The images while their atlas is at most 256 MiB, else the factors.
+    Auto,
+    /// An atlas of every image.
+    Images,
+    /// The sample's factors.
+    Factors,
+}
+
+impl From<UploadArg> for Upload {
+    fn from(u: UploadArg) -> Upload {
+        match u {
+            UploadArg::Auto => Upload::Auto,
+            UploadArg::Images => Upload::Images,
+            UploadArg::Factors => Upload::Factors,
+        }
+    }
+}
+
+/// The sample of `analysis` for the GPU: its material, and the factors of one stored as
+/// factors that the material decoded when opened (a factored material keeps its own), read
+/// even for `--upload images` so that a refusal can point to them.
+fn open_sample(analysis: &Path, upload: Upload) -> Result<GpuSample> {
+    let material = Material::open(analysis)?;
+    let mut sample = GpuSample { material, factors: None, upload };
+    if sample.factors().is_none() {
+        let manifest = store::read_manifest(analysis)?;
+        if manifest.sample.is_some() {
+            sample.factors = Some(store::read_factors(analysis, &manifest)?);
+        }
+    }
+    Ok(sample)
 }
 
 /// `--display` values.
@@ -86,9 +132,9 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
             anyhow::bail!("--save-dir {}: not a directory", args.save_dir.display());
         }
         let (scene, analysis) = args.shots.open_surface()?;
-        let material = Material::open(&analysis)?;
+        let sample = open_sample(&analysis, args.upload.into())?;
         let options = viewer::ViewerOptions { mode: args.shots.mode, lighting, save_dir: args.save_dir };
-        return Ok(viewer::run(scene, material, &plan, options)?);
+        return Ok(viewer::run(scene, sample, &plan, options)?);
     }
     let Some(dir) = &args.output else {
         return Err(super::usage("--headless renders into a directory: give -o DIR"));
@@ -97,9 +143,9 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     let mut writer = SequenceWriter::new(dir, &[args.out.format], args.out.force)?;
     let (scene, analysis) = args.shots.open_surface()?;
     args.shots.check_output(dir, &args.lighting, Some(&analysis))?;
-    let material = Material::open(&analysis)?;
+    let sample = open_sample(&analysis, args.upload.into())?;
     let vertices = scene.mesh.vertex_count();
-    let mut renderer = GpuRenderer::headless(scene, material, plan.size, lighting)?;
+    let mut renderer = GpuRenderer::headless(scene, sample, plan.size, lighting)?;
     let shots = plan.shots(renderer.scene().mesh.bounds());
     bars.start("rendering", shots.len() as u64);
     let mut seconds = 0.0;
@@ -113,7 +159,7 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
     bars.finish();
     let dir = writer.finish()?;
     eprintln!(
-        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode, {} samples per pixel): \
+        "rendered {} frame(s) of {}x{} on {} ({vertices} vertices, {} mode, {} samples per pixel, {}): \
          {:.1} ms per frame",
         shots.len(),
         plan.size.0,
@@ -121,6 +167,7 @@ pub fn run(args: ViewArgs, bars: &Bars) -> Result<()> {
         renderer.adapter_name(),
         args.shots.mode_name(),
         renderer.target_format().samples,
+        renderer.values().describe(),
         1e3 * seconds / shots.len() as f64
     );
     super::print(dir.join("contact.png").display())

@@ -234,6 +234,14 @@ impl Material {
         matches!(self.pixels, Texels::Factors(_))
     }
 
+    /// The factors values are computed from, if they are (see [`Material::is_factored`]).
+    pub fn factors(&self) -> Option<&FactoredStack> {
+        match &self.pixels {
+            Texels::Factors(f) => Some(f),
+            Texels::Decoded(_) => None,
+        }
+    }
+
     /// The material of a BTF stack as loaded (not tileable).
     pub fn from_btf(btf: &crate::btf::Btf) -> Result<Material> {
         let pixels = btf.pixels();

@@ -7,9 +7,9 @@ use super::camera::{world_direction, Camera, Projection};
 use super::gpu::context::Gpu;
 use super::gpu::overlay::Overlay;
 use super::gpu::passes::FrameTargets;
-use super::gpu::{readback, Display, GpuLighting, GpuScene};
+use super::gpu::{readback, Display, GpuLighting, GpuSample, GpuScene};
 use super::overlay::TextImage;
-use super::{Material, Mode, Scene, Shot, ShotPlan};
+use super::{Mode, Scene, Shot, ShotPlan};
 use crate::{Error, Result};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -41,9 +41,10 @@ pub struct ViewerOptions {
     pub save_dir: PathBuf,
 }
 
-/// Opens a window of `plan.size` showing `scene` from `plan.view` under `plan.light`, and
-/// runs until it is closed. Fails with one line if there is no display.
-pub fn run(scene: Scene, material: Material, plan: &ShotPlan, options: ViewerOptions) -> Result<()> {
+/// Opens a window of `plan.size` showing `scene` with `sample` from `plan.view` under
+/// `plan.light`, and runs until it is closed. Fails with one line if there is no display,
+/// or if the scene would not fit the GPU (see [`GpuScene::new`]).
+pub fn run(scene: Scene, sample: GpuSample, plan: &ShotPlan, options: ViewerOptions) -> Result<()> {
     let no_window = |e: &dyn std::fmt::Display| {
         // winit's OS errors start with the source location of winit itself: drop it.
         let text = e.to_string();
@@ -53,7 +54,7 @@ pub fn run(scene: Scene, material: Material, plan: &ShotPlan, options: ViewerOpt
     };
     let event_loop = EventLoop::new().map_err(|e| no_window(&e))?;
     let mut app = App {
-        setup: Some((scene, material, options.lighting.clone())),
+        setup: Some((scene, sample, options.lighting.clone())),
         plan: *plan,
         state: None,
         error: None,
@@ -204,7 +205,7 @@ struct State {
 }
 
 struct App {
-    setup: Option<(Scene, Material, GpuLighting)>,
+    setup: Option<(Scene, GpuSample, GpuLighting)>,
     plan: ShotPlan,
     state: Option<State>,
     error: Option<Error>,
@@ -214,7 +215,7 @@ struct App {
 
 impl App {
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<State> {
-        let (scene, material, lighting) =
+        let (scene, sample, lighting) =
             self.setup.take().ok_or_else(|| Error::invalid("viewer resumed twice"))?;
         let (w, h) = self.plan.size;
         let attributes = Window::default_attributes()
@@ -241,10 +242,15 @@ impl App {
         config.format = config.format.add_srgb_suffix();
         surface.configure(&gpu.device, &config);
         let name = gpu.name();
-        let scene = GpuScene::new(gpu, (scene, material), Some(config.format), lighting)?;
+        let frame = (config.width, config.height);
+        let scene = GpuScene::new(gpu, (scene, sample), (Some(config.format), frame), lighting)?;
         let targets = FrameTargets::new(&scene.gpu.device, (config.width, config.height), scene.target);
         let overlay = Overlay::new(&scene.gpu.device, config.format);
-        eprintln!("drawing on {name} ({} samples per pixel)", scene.target.samples);
+        eprintln!(
+            "drawing on {name} ({} samples per pixel; {})",
+            scene.target.samples,
+            scene.values.describe()
+        );
         let rate = FrameRate { since: Instant::now(), frames: 0 };
         Ok(State { window, surface, config, targets, scene, overlay, rate, environment_camera: None })
     }

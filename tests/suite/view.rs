@@ -109,3 +109,163 @@ fn the_window_without_a_display_says_to_use_headless() {
         .unwrap();
     assert_one_line_error(&out, "--headless");
 }
+
+/// A surface map of a small factorized BTF: `gen pebbles --size 24 --directions ubo81
+/// --spp 1` (6,561 images), `convert --to btf --components 8 --colour-model MODEL` for each
+/// of `models`, each analysed from its factors (which stores the sample as factors) and
+/// synthesized onto the bunny. Returns the surface map of each model.
+fn factored_surfaces(dir: &Path, models: &[&str]) -> Vec<PathBuf> {
+    let stack = dir.join("stack");
+    let gen = ["-q", "gen", "pebbles", "--size", "24", "--directions", "ubo81", "--spp", "1", "-o"];
+    let r = btfsynth(&[&gen[..], &[stack.to_str().unwrap()]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let run = |args: &[&str]| {
+        let r = btfsynth(args);
+        assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+    };
+    let path = |name: String| dir.join(name).to_str().unwrap().to_string();
+    models
+        .iter()
+        .map(|model| {
+            let (btf, analysis, surface) =
+                (path(format!("m{model}.btf")), path(format!("m{model}")), path(format!("m{model}.ply")));
+            let stack = stack.to_str().unwrap();
+            run(&[
+                "-q",
+                "convert",
+                stack,
+                "--to",
+                "btf",
+                "--components",
+                "8",
+                "--colour-model",
+                model,
+                "-o",
+                &btf,
+            ]);
+            run(&["-q", "analyze", &btf, "--textons", "8", "--levels", "1", "-o", &analysis]);
+            run(&["-q", "synth", &analysis, common::BUNNY, "--texels-across", "64", "-o", &surface]);
+            PathBuf::from(surface)
+        })
+        .collect()
+}
+
+/// Runs `view --headless` (one 256² frame under light 45,45) with `extra` arguments into
+/// `out` and returns its stderr, or `None` (after the skip line) without an adapter.
+fn headless_frame(test: &str, surface: &Path, mode: &str, extra: &[&str], out: &Path) -> Option<String> {
+    let shot = ["--size", "256x256", "--light", "45,45", "--mode", mode, "--format", "exr"];
+    let args = [
+        &["-q", "view", surface.to_str().unwrap(), "--headless"][..],
+        &shot,
+        extra,
+        &["-o", out.to_str().unwrap()],
+    ];
+    let g = btfsynth(&args.concat());
+    let stderr = String::from_utf8_lossy(&g.stderr).to_string();
+    if !g.status.success() && btfsynth::testdata::gpu_missing(test, &stderr) {
+        return None;
+    }
+    assert!(g.status.success(), "{stderr}");
+    Some(stderr)
+}
+
+#[test]
+fn the_factor_path_draws_what_the_image_atlas_draws() {
+    const TEST: &str = "the_factor_path_draws_what_the_image_atlas_draws";
+    if btfsynth::testdata::gpu_skipped(TEST) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // RGB (the colour model is linear) and log-Y, U/Y, V/Y (the UBO2014 files' model: the
+    // shader's exponentials and ratios).
+    for (model, surface) in ["0", "11"].iter().zip(factored_surfaces(dir.path(), &["0", "11"])) {
+        for mode in ["pixel", "vertex"] {
+            let name = format!("model {model}, {mode} mode");
+            let frames = |upload: &str| dir.path().join(format!("{model}-{mode}-{upload}"));
+            let Some(images) =
+                headless_frame(TEST, &surface, mode, &["--upload", "images"], &frames("images"))
+            else {
+                return;
+            };
+            let factors =
+                headless_frame(TEST, &surface, mode, &["--upload", "factors"], &frames("factors")).unwrap();
+            assert!(
+                images.contains("sample images as an atlas") && factors.contains("sample factors"),
+                "{factors}"
+            );
+            let cpu = frames("cpu");
+            let shot = ["--size", "256x256", "--light", "45,45", "--mode", mode, "--format", "exr"];
+            let r = btfsynth(
+                &[&["-q", "render", surface.to_str().unwrap()][..], &shot, &["-o", cpu.to_str().unwrap()]]
+                    .concat(),
+            );
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            let read = |d: PathBuf| read_rgb(&d.join("frame_0000.exr"));
+            let (a, b, c) = (read(frames("images")), read(frames("factors")), read(cpu));
+            let covered = b.iter().filter(|p| p.iter().any(|&v| v > 0.0)).count();
+            assert!(covered > b.len() / 20, "{name}: the factor path shows the model ({covered} lit pixels)");
+            let mean = c.iter().flatten().map(|&v| v as f64).sum::<f64>() / (3 * c.len()) as f64;
+            let (gpu, cpu) = (mean_abs_difference(&a, &b), mean_abs_difference(&c, &b));
+            eprintln!("{name}: mean |atlas − factors| = {gpu:.6}, mean |CPU − factors| = {cpu:.6} (mean value {mean:.4})");
+            // The atlas holds f16 values, the factor path computes f32 ones: the frames differ
+            // by that rounding and by nothing else (measured on lavapipe: 3–5·10⁻⁶ on a mean
+            // value of 0.05–0.07, i.e. 6–7·10⁻⁵ of it).
+            assert!(gpu < 5e-4 * mean, "{name}: the atlas and the factors differ by {gpu} on average");
+            assert!(cpu < 0.02, "{name}: CPU and factor-path frames differ by {cpu} on average");
+        }
+    }
+}
+
+#[test]
+fn a_scene_over_the_gpu_memory_limit_is_refused_with_one_line() {
+    const TEST: &str = "a_scene_over_the_gpu_memory_limit_is_refused_with_one_line";
+    if btfsynth::testdata::gpu_skipped(TEST) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let surface = &factored_surfaces(dir.path(), &["11"])[0];
+    let out = dir.path().join("frames");
+    // At 64² pixels the scene takes about 50 MiB with the atlas (30 MiB of it the 6,561
+    // images of 24²), about 20 MiB with the factors (16 MiB of it the shadow map).
+    let view = |limit: &str, upload: &str| {
+        let args = ["view", surface.to_str().unwrap(), "--headless", "--size", "64x64", "--upload", upload];
+        std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+            .args(args)
+            .args(["-q", "-o", out.to_str().unwrap()])
+            .env("BTFSYNTH_GPU_MEMORY", limit)
+            .output()
+            .unwrap()
+    };
+    let r = view("32M", "images");
+    if !r.status.success() && btfsynth::testdata::gpu_missing(TEST, &String::from_utf8_lossy(&r.stderr)) {
+        return;
+    }
+    assert_one_line_error(
+        &r,
+        "of GPU memory (sample images as an atlas: 30 MiB), more than its 32 MiB limit",
+    );
+    assert_one_line_error(&r, "BTFSYNTH_GPU_MEMORY=32M); show the factors with --upload factors");
+    assert!(!out.exists(), "nothing written");
+    // The same limit holds the factors, and nothing holds anything.
+    let r = view("32M", "factors");
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    std::fs::remove_dir_all(&out).unwrap();
+    assert_one_line_error(
+        &view("8M", "factors"),
+        "of GPU memory (shadow map: 16 MiB), more than its 8 MiB limit",
+    );
+    assert_one_line_error(&view("lots", "factors"), "BTFSYNTH_GPU_MEMORY='lots'");
+    assert!(!out.exists(), "nothing written");
+    // An analysis that stores images has no factors to show.
+    let images = bunny_surface(dir.path());
+    let r = btfsynth(&[
+        "view",
+        images.to_str().unwrap(),
+        "--headless",
+        "--upload",
+        "factors",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&r, "--upload factors: this analysis stores its sample as images");
+}

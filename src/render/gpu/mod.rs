@@ -1,17 +1,28 @@
 //! The wgpu renderer: the same scene, material and per-vertex blends as the CPU renderer
 //! ([`crate::render::cpu`]), drawn by rasterisation with a shadow map. Blends are computed
 //! on the CPU each frame ([`Scene::vertex_blends`]) and uploaded; `shaders/surface.wgsl` only
-//! fetches and sums texels.
+//! fetches texels (or computes them from the sample's factors) and sums them.
 //!
 //! [`GpuRenderer`] renders offscreen into [`Frame`]s; the viewer
 //! ([`crate::render::viewer`]) draws the same [`passes::Passes`] into a window.
+//!
+//! The sample goes up as its images ([`atlas`]) or, when those would be large and the
+//! analysis stores factors, as its factors ([`factors`]); [`sample::plan`] chooses, and
+//! [`sample::estimate`] counts the GPU memory of the whole scene before anything is
+//! uploaded ([`memory`]).
 
 pub mod atlas;
 pub mod context;
+pub mod factors;
+pub mod memory;
 pub mod overlay;
 pub mod passes;
 pub mod pipeline;
 pub mod readback;
+pub mod sample;
+
+pub use factors::Upload;
+pub use sample::GpuSample;
 
 use super::ambient::{self, AmbientCache};
 use super::tracer::Tracer;
@@ -79,40 +90,54 @@ pub struct GpuScene {
     pub scene: Scene,
     pub material: Material,
     pub lighting: GpuLighting,
+    /// Which of the sample's values went to the GPU.
+    pub values: sample::Values,
     ambient: Option<AmbientCache>,
     /// The scene's BVH, for the environment's shadows and for which vertices a camera shows.
     tracer: Option<Tracer>,
 }
 
 impl GpuScene {
-    /// Uploads `scene` and `material` to `gpu`, for frames of `colour` format (multisampled
-    /// where the adapter can); the environment's cell shadows are traced now. Any wgpu error
-    /// is one line.
+    /// Uploads `scene` and `sample` to `gpu` (the sample's images or its factors, as
+    /// [`sample::plan`] chooses), for frames of `colour` format (multisampled where the
+    /// adapter can) of `frame` pixels; the environment's cell shadows are traced now. Any
+    /// wgpu error is one line, and so is a scene whose GPU memory ([`sample::estimate`])
+    /// exceeds the limit ([`memory::limit`]), refused before anything is uploaded.
     pub fn new(
         gpu: Gpu,
-        (scene, material): (Scene, Material),
-        colour: Option<wgpu::TextureFormat>,
+        (scene, sample): (Scene, GpuSample),
+        (colour, frame): (Option<wgpu::TextureFormat>, (u32, u32)),
         lighting: GpuLighting,
     ) -> Result<GpuScene> {
         let formats = gpu.formats()?;
         let colour = colour.unwrap_or(formats.target);
         let target =
             TargetFormat { colour, depth: formats.depth, samples: gpu.msaa_samples(colour, formats.depth) };
+        let values = sample::plan(&sample, &gpu.device.limits(), formats.images)?;
         let rects = lighting.environment.as_ref().map(|_| ambient::patch_rects(&scene));
+        let advice = match values {
+            sample::Values::Atlas { .. } if sample.factors().is_some() => {
+                "show the factors with --upload factors"
+            }
+            _ => "show a smaller sample or mesh, or a smaller --size",
+        };
+        let estimate = sample::estimate(&scene, &values, (target, frame), rects.as_deref());
+        estimate.check(&gpu.name(), memory::limit(gpu.adapter.get_info().device_type)?, advice)?;
         let passes = gpu.scoped("draw this scene", || {
             Passes::new(
                 &gpu.device,
                 &gpu.queue,
-                (&scene, &material),
+                (&scene, &sample.material, sample.factors()),
                 target,
-                formats.images,
+                &values,
                 rects.as_deref(),
             )
         })?;
+        let material = sample.material;
         let ambient =
             lighting.environment.clone().map(|e| AmbientCache::new(&scene, &material, e, lighting.shadows));
         let tracer = (ambient.is_some() && lighting.shadows).then(|| Tracer::new(&scene.mesh));
-        Ok(GpuScene { gpu, passes, target, scene, material, lighting, ambient, tracer })
+        Ok(GpuScene { gpu, passes, target, scene, material, lighting, values, ambient, tracer })
     }
 
     /// Uploads what `shot` needs (blends, uniforms, and the environment's shading for
@@ -158,7 +183,7 @@ impl GpuRenderer {
     /// window. Fails with one line if there is none, or if it cannot render this scene.
     pub fn headless(
         scene: Scene,
-        material: Material,
+        sample: GpuSample,
         size: (u32, u32),
         lighting: GpuLighting,
     ) -> Result<GpuRenderer> {
@@ -172,7 +197,7 @@ impl GpuRenderer {
                 gpu.name()
             )));
         }
-        let inner = GpuScene::new(gpu, (scene, material), None, lighting)?;
+        let inner = GpuScene::new(gpu, (scene, sample), (None, size), lighting)?;
         let (gpu, format) = (&inner.gpu, inner.target);
         let (target, targets, staging) = gpu.scoped("make its frame buffers", || {
             let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -201,8 +226,14 @@ impl GpuRenderer {
         self.inner.target
     }
 
+    /// The scene drawn.
     pub fn scene(&self) -> &Scene {
         &self.inner.scene
+    }
+
+    /// Which of the sample's values are on the GPU, and their size.
+    pub fn values(&self) -> sample::Values {
+        self.inner.values
     }
 
     /// Renders `shot` (whose camera must be of this renderer's size) into a linear RGBA frame.

@@ -1,8 +1,12 @@
 //! The scene on the GPU and the passes that draw it: buffers (vertices, corners,
 //! blends, uniforms), the shadow map, bind groups, and the per-frame uploads.
 
-use super::atlas::{self, AtlasLayout};
+use super::atlas;
+use super::factors;
+use super::memory::check_binding;
 use super::pipeline::{self, TargetFormat};
+use super::sample::Values;
+use crate::btf::factored::FactoredStack;
 use crate::render::ambient::{Ambient, TexelRect};
 use crate::render::camera::{Camera, Projection};
 use crate::render::{Blend16, Material, Mode, Scene, Shot};
@@ -28,7 +32,7 @@ struct GpuVertex {
 /// A vertex's blend as the shader reads it.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuBlend {
+pub(crate) struct GpuBlend {
     image: [u32; 16],
     weight: [f32; 16],
 }
@@ -46,6 +50,9 @@ struct Uniforms {
     atlas: [u32; 4],
     params: [f32; 4],
     lighting: [f32; 4],
+    factors: [u32; 4],
+    colour_model: [u32; 4],
+    colour_rows: [[f32; 4]; 3],
 }
 
 /// What a frame shows besides the shot.
@@ -117,7 +124,9 @@ pub struct Passes {
     corner_count: u32,
     /// Per vertex, its environment patch: x, y, width | height << 16, offset.
     patch_texels: wgpu::Buffer,
-    layout: AtlasLayout,
+    values: Values,
+    /// The sample's width and height in texels.
+    sample_size: (u32, u32),
     tileable: bool,
     texel: f32,
     /// Bounding ball of the model, which the light's orthographic view is fitted to.
@@ -125,53 +134,31 @@ pub struct Passes {
 }
 
 impl Passes {
-    /// Uploads the scene and the material (its images as `image_format`) and builds the
-    /// pipelines for `target`; with `patches` (the environment's patch of every vertex,
+    /// Uploads the scene and the sample's `values` (the material's images, or `factors`,
+    /// as [`super::sample::plan`] chose) and builds the pipelines for `target`; with
+    /// `patches` (the environment's patch of every vertex,
     /// [`crate::render::ambient::patch_rects`]), room for the environment's texels.
+    /// [`super::sample::estimate`] counts the same uploads.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        (scene, material): (&Scene, &Material),
+        (scene, material, factors): (&Scene, &Material, Option<&FactoredStack>),
         target: TargetFormat,
-        image_format: wgpu::TextureFormat,
+        values: &Values,
         patches: Option<&[TexelRect]>,
     ) -> Result<Passes> {
         let limits = device.limits();
-        let layout = AtlasLayout::new(
-            material.len() as u32,
-            (material.width() as u32, material.height() as u32),
-            limits.max_texture_dimension_2d,
-            limits.max_texture_array_layers,
-        )?;
         let blend_bytes = (scene.mesh.vertex_count() * std::mem::size_of::<GpuBlend>()) as u64;
-        if blend_bytes > limits.max_storage_buffer_binding_size {
-            return Err(Error::invalid(format!(
-                "{} vertices need {blend_bytes} bytes of blends but this GPU binds at most {}",
-                scene.mesh.vertex_count(),
-                limits.max_storage_buffer_binding_size
-            )));
-        }
+        check_binding(&format!("{} vertices' blends", scene.mesh.vertex_count()), blend_bytes, &limits)?;
         let texel_count = patches.map_or(0, |p| p.iter().map(TexelRect::area).sum::<usize>());
         let texel_bytes = texel_count as u64 * 12;
-        if texel_bytes > limits.max_storage_buffer_binding_size {
-            return Err(Error::invalid(format!(
-                "the environment needs {texel_bytes} bytes of texels but this GPU binds at most {}",
-                limits.max_storage_buffer_binding_size
-            )));
-        }
-        let images = atlas::upload(device, queue, material, &layout, image_format).create_view(
-            &wgpu::TextureViewDescriptor {
-                dimension: Some(wgpu::TextureViewDimension::D2Array),
-                ..Default::default()
-            },
-        );
-        let places: Vec<[i32; 4]> = (0..material.len() as u32)
-            .map(|i| {
-                let (layer, x, y) = layout.place(i);
-                [layer as i32, x as i32, y as i32, 0]
-            })
-            .collect();
-        let places = storage(device, "image places", bytemuck::cast_slice(&places));
+        check_binding("the environment's texels", texel_bytes, &limits)?;
+        let (images, image_table) = sample_values(device, queue, (material, factors), values)?;
+        let images = images.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let places = storage(device, "image table", bytemuck::cast_slice(&image_table));
         let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
         // also the index buffer of the depth-only passes
@@ -270,7 +257,8 @@ impl Passes {
             corner_count: corners.len() as u32,
             corners: corner_buffer,
             patch_texels,
-            layout,
+            values: *values,
+            sample_size: (material.width() as u32, material.height() as u32),
             tileable: material.tileable,
             texel: scene.texel,
             ball: (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-6)),
@@ -298,7 +286,10 @@ impl Passes {
         let camera = &shot.camera;
         let perspective = matches!(camera.projection, Projection::Perspective { .. });
         let radius = self.ball.1;
-        let l = &self.layout;
+        let (factor_groups, colour) = match &self.values {
+            Values::Factors { layout: l, colour } => ([l.groups[0], l.groups[1], l.groups[2], 1], *colour),
+            Values::Atlas { .. } => ([0; 4], factors::ColourUniform { model: [0; 4], rows: [[0.0; 4]; 3] }),
+        };
         Uniforms {
             light_view_proj: self.light_camera(shot.light).view_proj().to_cols_array_2d(),
             view_proj: camera.view_proj().to_cols_array_2d(),
@@ -311,9 +302,12 @@ impl Passes {
                 settings.shadows as u32,
                 self.tileable as u32,
             ],
-            atlas: [l.width, l.height, l.tiles_x, l.per_layer],
+            atlas: [self.sample_size.0, self.sample_size.1, 0, 0],
             params: [self.texel, 2.0 * radius / SHADOW_MAP_SIZE as f32, 1.0 / SHADOW_MAP_SIZE as f32, 0.0],
             lighting: [settings.sun, settings.environment as u32 as f32, 0.0, 0.0],
+            factors: factor_groups,
+            colour_model: colour.model,
+            colour_rows: colour.rows,
         }
     }
 
@@ -412,6 +406,35 @@ impl Passes {
         pass.set_bind_group(0, &self.surface_bindings, &[]);
         pass.set_bind_group(1, &self.colours_read, &[]);
         pass.draw(0..self.corner_count, 0..1);
+    }
+}
+
+/// The sample's values on the GPU: the texture the shader's `images` binding reads (the
+/// atlas, or the texel factors) and its image table (per image its atlas tile, or its
+/// factor row and scale).
+fn sample_values(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    (material, factors): (&Material, Option<&FactoredStack>),
+    values: &Values,
+) -> Result<(wgpu::Texture, Vec<[f32; 4]>)> {
+    match values {
+        Values::Atlas { layout, format } => {
+            let texture = atlas::upload(device, queue, material, layout, *format);
+            // small integers, exact as f32
+            let places = (0..material.len() as u32)
+                .map(|i| {
+                    let (layer, x, y) = layout.place(i);
+                    [layer as f32, x as f32, y as f32, 0.0]
+                })
+                .collect();
+            Ok((texture, places))
+        }
+        Values::Factors { layout, .. } => {
+            let f =
+                factors.ok_or_else(|| Error::invalid("the sample's factors were not kept for the GPU"))?;
+            Ok((factors::upload_texels(device, queue, f, layout), factors::image_table(f, layout)))
+        }
     }
 }
 
