@@ -28,9 +28,10 @@ pub enum Upload {
 /// in an atlas is one read, where the factors cost three K-term products per texel and
 /// image (on lavapipe, 48² texels × 22,801 images with 32 components per channel: 2.0 s
 /// per 512² frame from a 408 MiB atlas, 4.6–5.8 s from 10 MiB of factors), so the atlas is
-/// worth its memory while that memory is small. The limit is the CPU renderer's decoding
-/// limit ([`crate::render::material::DECODE_LIMIT`]), a choice rather than a measured
-/// crossover.
+/// worth its memory while that memory is small. GPU memory is scarcer than the CPU's, so
+/// the limit is lower than the CPU renderer's decoding limit
+/// ([`crate::render::material::DECODE_LIMIT`], 2 GiB); it is a choice rather than a
+/// measured crossover.
 pub const ATLAS_LIMIT: u64 = 256 << 20;
 
 /// How the factors lie on the GPU.
