@@ -10,7 +10,7 @@
 //! [`DEFAULT_GPU_MEMORY`].
 
 use crate::analysis::memory::gib;
-use crate::btf::source::{memory_budget, parse_budget};
+use crate::btf::source::{memory_budget, parse_size_env};
 use crate::{Error, Result};
 
 /// The environment variable that sets the GPU memory limit.
@@ -63,14 +63,7 @@ impl Estimate {
 /// The GPU memory limit for an adapter of `kind` (see the module notes).
 pub fn limit(kind: wgpu::DeviceType) -> Result<Option<(u64, String)>> {
     if let Ok(text) = std::env::var(GPU_MEMORY_ENV) {
-        return parse_budget(&text)
-            .map(|b| b.map(|(bytes, _)| (bytes, format!("{GPU_MEMORY_ENV}={}", text.trim()))))
-            .map_err(|_| {
-                Error::invalid(format!(
-                    "{GPU_MEMORY_ENV}='{text}': expected a size such as 6G, 512M or a number of bytes, or \
-                     'unlimited'"
-                ))
-            });
+        return parse_size_env(GPU_MEMORY_ENV, &text);
     }
     let budget = memory_budget()?;
     if kind == wgpu::DeviceType::Cpu {
