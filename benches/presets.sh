@@ -76,7 +76,9 @@ done
 cat "$table"
 
 # Soler et al. 2002, the method beside the presets: the sample's own texels mapped onto the
-# original mesh by texture coordinates, rendered and scored like the presets' results.
+# original mesh by texture coordinates, rendered and scored like the presets' results, at
+# the presets' scale (one texel per finest vertex spacing of the first preset's run).
+first=$(echo "$presets" | head -1)
 soler_table="$out/soler2002.md"
 {
   echo "| method | material | faces | seconds | patch energy | colour χ² | seam ratio (border / interior windows) |"
@@ -84,7 +86,8 @@ soler_table="$out/soler2002.md"
 } >"$soler_table"
 for m in "${materials[@]}"; do
   ply="$out/soler2002-$m.ply"
-  $bin -q synth "$out/$m.analysis" data/bunny-1k8.obj --method soler2002 \
+  scale=$(jq '1 / .params.mesh_levels[0].texel' "$out/$first-$m.report.json")
+  $bin -q synth "$out/$m.analysis" data/bunny-1k8.obj --method soler2002 --scale "$scale" \
     --report "$out/soler2002-$m.report.json" --force -o "$ply"
   $bin eval "$out/$m.analysis" "$ply" --json >"$out/soler2002-$m.eval.json"
   $bin -q render "$ply" --size 320x320 --format png --force -o "$out/render-soler2002-$m"
