@@ -5,7 +5,9 @@ use super::shots::{LightingArgs, OutputArgs, ShotArgs};
 use anyhow::Result;
 use btfsynth::analysis::store;
 use btfsynth::progress::Progress;
+use btfsynth::render::gpu::factors::ATLAS_LIMIT;
 use btfsynth::render::gpu::{Display, GpuLighting, GpuRenderer, GpuSample, Upload};
+use btfsynth::render::material::decode_limit;
 use btfsynth::render::{viewer, Material, SequenceWriter};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -79,7 +81,11 @@ impl From<UploadArg> for Upload {
 /// factors that the material decoded when opened (a factored material keeps its own), read
 /// even for `--upload images` so that a refusal can point to them.
 fn open_sample(analysis: &Path, upload: Upload) -> Result<GpuSample> {
-    let material = Material::open(analysis)?;
+    // Decoded only where `auto` would upload the atlas (its half floats take 8 bytes a
+    // texel and image, the decoded values 12): a larger sample goes up as factors, and
+    // decoding it on the CPU first (up to the renderer's 2 GiB) would be wasted.
+    let atlas_sized = ATLAS_LIMIT / 8 * 12;
+    let material = Material::open_within(analysis, decode_limit()?.min(atlas_sized))?;
     let mut sample = GpuSample { material, factors: None, upload };
     if sample.factors().is_none() {
         let manifest = store::read_manifest(analysis)?;

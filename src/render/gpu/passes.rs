@@ -4,7 +4,7 @@
 use super::atlas;
 use super::factors;
 use super::memory::check_binding;
-use super::pipeline::{self, TargetFormat};
+use super::pipeline::{self, GpuBlend, TargetFormat, SHADOW_MAP_SIZE};
 use super::sample::Values;
 use crate::btf::factored::FactoredStack;
 use crate::render::ambient::{Ambient, TexelRect};
@@ -27,14 +27,6 @@ struct GpuVertex {
     v: f32,
     n: [f32; 3],
     pad: f32,
-}
-
-/// A vertex's blend as the shader reads it.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub(crate) struct GpuBlend {
-    image: [u32; 16],
-    weight: [f32; 16],
 }
 
 /// `surface.wgsl`'s `Uniforms` (the shadow pass reads only the first matrix).
@@ -96,9 +88,6 @@ impl FrameTargets {
         FrameTargets { multisampled, depth }
     }
 }
-
-/// Default side of the square shadow map, in texels.
-pub const SHADOW_MAP_SIZE: u32 = 2048;
 
 /// Everything the passes need that lives on the GPU.
 pub struct Passes {

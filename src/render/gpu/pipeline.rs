@@ -1,6 +1,18 @@
 //! The render pipelines (depth-only shadow pass from the light; depth pre-pass and surface
 //! pass from the camera) and the bind group layouts they use.
 
+/// A vertex's blend as the shader reads it (here, beside the pipelines that read it, so that
+/// the memory estimate can size it without depending on the passes).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuBlend {
+    pub(crate) image: [u32; 16],
+    pub(crate) weight: [f32; 16],
+}
+
+/// Default side of the square shadow map, in texels.
+pub const SHADOW_MAP_SIZE: u32 = 2048;
+
 /// What the camera passes draw into: the colour and depth formats and the samples per
 /// pixel (4 with multisampling, resolved into the colour target).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,8 +5,7 @@
 use super::atlas::AtlasLayout;
 use super::factors::{self, ColourUniform, FactorLayout, Upload, ATLAS_LIMIT};
 use super::memory::{self, Estimate};
-use super::passes::{GpuBlend, SHADOW_MAP_SIZE};
-use super::pipeline::TargetFormat;
+use super::pipeline::{GpuBlend, TargetFormat, SHADOW_MAP_SIZE};
 use crate::analysis::memory::gib;
 use crate::btf::factored::FactoredStack;
 use crate::render::ambient::TexelRect;
