@@ -20,7 +20,7 @@ use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
 use btfsynth::synth::patches::graph::SurfaceGraph;
 use btfsynth::synth::patches::hierarchy::Hierarchy;
 use btfsynth::synth::patches::quality::{
-    border_discontinuity, close_up, seam_windows, seams, split, Seam, SeamWindow,
+    border_discontinuity, close_up, seam_windows, seams, split, MappedSurface, Seam, SeamWindow,
 };
 use btfsynth::synth::patches::{map_mesh, PatchMapping, SolerParams};
 use rand::SeedableRng;
@@ -118,39 +118,24 @@ fn main() {
         )
         .expect("mapped");
         let seconds = started.elapsed().as_secs_f64();
-        let windows = seam_windows(
-            &mesh.positions,
-            &mesh.triangles,
-            &m.corner_uv,
-            &m.cluster,
-            &sample,
-            false,
-            scale,
-            (3000, 1),
-        )
-        .expect("measured");
+        let surface = MappedSurface {
+            positions: &mesh.positions,
+            triangles: &mesh.triangles,
+            corner_uv: &m.corner_uv,
+            cluster: &m.cluster,
+            sample: &sample,
+            tileable: false,
+            texels_per_unit: scale,
+        };
+        let windows = seam_windows(&surface, (3000, 1)).expect("measured");
         let q = split(&windows);
         breakdown(&windows, &m.level);
         let seams =
             seams(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit).expect("measured");
         let listed = worst_seams(&seams, &windows, &m, scale, worst);
         if let Some(path) = sheet.as_ref().filter(|_| matching) {
-            let pictures: Vec<Picture> = listed
-                .iter()
-                .filter_map(|&f| {
-                    close_up(
-                        &mesh.positions,
-                        &mesh.triangles,
-                        &m.corner_uv,
-                        &m.cluster,
-                        &sample,
-                        false,
-                        scale,
-                        (f, 41),
-                    )
-                    .expect("close-up")
-                })
-                .collect();
+            let pictures: Vec<Picture> =
+                listed.iter().filter_map(|&f| close_up(&surface, (f, 41)).expect("close-up")).collect();
             write_sheet(&pictures, path);
         }
         let (jump, n) =

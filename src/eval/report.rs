@@ -131,7 +131,7 @@ pub fn evaluate_uv_map(
     analysis_dir: &Path,
     map: &crate::synth::patches::output::UvMap,
 ) -> Result<Evaluation> {
-    use crate::synth::patches::quality::seam_quality;
+    use crate::synth::patches::quality::{seam_quality, MappedSurface};
     let images = SampleImages::open(analysis_dir)?;
     if (images.width, images.height) != map.sample {
         return Err(Error::invalid(format!(
@@ -150,16 +150,16 @@ pub fn evaluate_uv_map(
         .into_iter()
         .map(|probe| {
             let picture = images.picture(probe.image);
-            let q = seam_quality(
-                &mesh.positions,
-                &mesh.triangles,
-                &map.corner_uv,
-                &map.cluster,
-                &picture,
-                map.tileable,
-                scale,
-                (3000, 1),
-            )?;
+            let surface = MappedSurface {
+                positions: &mesh.positions,
+                triangles: &mesh.triangles,
+                corner_uv: &map.corner_uv,
+                cluster: &map.cluster,
+                sample: &picture,
+                tileable: map.tileable,
+                texels_per_unit: scale,
+            };
+            let q = seam_quality(&surface, (3000, 1))?;
             let windows = (q.border_windows + q.interior_windows).max(1) as f64;
             let weighted = |e: f64, n: usize| if n > 0 { e * n as f64 } else { 0.0 };
             let patch_energy =

@@ -53,23 +53,28 @@ pub struct SeamWindow {
     pub others: f32,
 }
 
-/// Measures the mapping `corner_uv` (per file face, per corner, sample texels) with its
-/// per-face `cluster` on the mesh `positions`/`triangles` against `sample` (the image the
-/// coordinates index), at `texels_per_unit`, from at most `windows` faces drawn with `seed`.
-#[allow(clippy::too_many_arguments)]
-pub fn seam_quality(
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    corner_uv: &[[Vec2; 3]],
-    cluster: &[u32],
-    sample: &Picture,
-    tileable: bool,
-    texels_per_unit: f32,
-    draw: (usize, u64),
-) -> Result<SeamQuality> {
-    let windows =
-        seam_windows(positions, triangles, corner_uv, cluster, sample, tileable, texels_per_unit, draw)?;
-    Ok(split(&windows))
+/// A texture-mapped surface as the seam measures read it.
+#[derive(Clone, Copy)]
+pub struct MappedSurface<'a> {
+    /// The mesh's vertex positions.
+    pub positions: &'a [Vec3],
+    /// The mesh's faces.
+    pub triangles: &'a [[u32; 3]],
+    /// Per file face, per corner, its coordinates in sample texels.
+    pub corner_uv: &'a [[Vec2; 3]],
+    /// Per file face, the patch (cluster) it was mapped with.
+    pub cluster: &'a [u32],
+    /// The image the coordinates index.
+    pub sample: &'a Picture,
+    /// Whether lookups wrap around the sample's edges.
+    pub tileable: bool,
+    /// Sample texels per model unit.
+    pub texels_per_unit: f32,
+}
+
+/// Measures `surface`'s seams from at most `windows` faces drawn with `seed`.
+pub fn seam_quality(surface: &MappedSurface, draw: (usize, u64)) -> Result<SeamQuality> {
+    Ok(split(&seam_windows(surface, draw)?))
 }
 
 /// Mean energies of the windows with two or more patches and of those with one.
@@ -86,29 +91,12 @@ pub fn split(windows: &[SeamWindow]) -> SeamQuality {
 
 /// The windows behind [`seam_quality`], one per face drawn whose window lies wholly on the
 /// surface, each with its energy, patches and stretch.
-#[allow(clippy::too_many_arguments)]
-pub fn seam_windows(
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    corner_uv: &[[Vec2; 3]],
-    cluster: &[u32],
-    sample: &Picture,
-    tileable: bool,
-    texels_per_unit: f32,
-    (windows, seed): (usize, u64),
-) -> Result<Vec<SeamWindow>> {
-    let graph = SurfaceGraph::new(positions, triangles, Path::new("<mapped mesh>"))?;
-    // Per graph face, its coordinates in its own corner order.
-    let uv: Vec<[Vec2; 3]> = (0..graph.face_count())
-        .map(|g| {
-            let f = graph.file_face[g] as usize;
-            let order = graph.file_corner[g];
-            [0, 1, 2].map(|k| corner_uv[f][order[k] as usize])
-        })
+pub fn seam_windows(surface: &MappedSurface, (windows, seed): (usize, u64)) -> Result<Vec<SeamWindow>> {
+    let resampler = Resampler::new(surface)?;
+    let graph = &resampler.graph;
+    let stretch: Vec<f32> = (0..graph.face_count())
+        .map(|g| face_stretch(graph, &resampler.uv, g, surface.texels_per_unit))
         .collect();
-    let owner: Vec<u32> = graph.file_face.iter().map(|&f| cluster[f as usize]).collect();
-    let stretch: Vec<f32> =
-        (0..graph.face_count()).map(|g| face_stretch(&graph, &uv, g, texels_per_unit)).collect();
     let mut faces: Vec<u32> =
         (0..graph.face_count() as u32).filter(|&g| graph.area[g as usize] > 0.0).collect();
     faces.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
@@ -116,9 +104,7 @@ pub fn seam_windows(
     let half = (PATCH_SIDE / 2) as f32;
     let (mut values, mut found) = (Vec::new(), Vec::new());
     for &f in &faces {
-        let Some(w) = window(&graph, &uv, &owner, f, sample, tileable, texels_per_unit, half) else {
-            continue;
-        };
+        let Some(w) = resampler.window(f, half) else { continue };
         values.extend(w.values);
         let stretch = w.faces.iter().map(|&g| stretch[g as usize]).fold(0f32, f32::max);
         let patches = w.patches.iter().map(|&(c, _)| c).collect();
@@ -127,7 +113,7 @@ pub fn seam_windows(
     }
     let dims = PATCH_SIDE * PATCH_SIDE * 3;
     if let Ok(q) = ndarray::Array2::from_shape_vec((found.len(), dims), values) {
-        for (w, (_, d)) in found.iter_mut().zip(nearest_patches(&q, sample, tileable)) {
+        for (w, (_, d)) in found.iter_mut().zip(nearest_patches(&q, surface.sample, surface.tileable)) {
             w.energy = d / dims as f64;
         }
     }
@@ -269,31 +255,13 @@ struct Window {
 /// resamples its windows (in that face's texture frame, one sample texel per pixel) but
 /// `side` pixels across (odd): the pixels where the patch changes are drawn red, those off
 /// the surface black. None for a face without area.
-#[allow(clippy::too_many_arguments)]
-pub fn close_up(
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    corner_uv: &[[Vec2; 3]],
-    cluster: &[u32],
-    sample: &Picture,
-    tileable: bool,
-    texels_per_unit: f32,
-    (face, side): (u32, usize),
-) -> Result<Option<Picture>> {
-    let graph = SurfaceGraph::new(positions, triangles, Path::new("<mapped mesh>"))?;
-    let g = graph.graph_face.get(face as usize).copied().unwrap_or(NONE);
+pub fn close_up(surface: &MappedSurface, (face, side): (u32, usize)) -> Result<Option<Picture>> {
+    let resampler = Resampler::new(surface)?;
+    let g = resampler.graph.graph_face.get(face as usize).copied().unwrap_or(NONE);
     if g == NONE {
         return Ok(None);
     }
-    let uv: Vec<[Vec2; 3]> = (0..graph.face_count())
-        .map(|g| {
-            let order = graph.file_corner[g];
-            [0, 1, 2].map(|k| corner_uv[graph.file_face[g] as usize][order[k] as usize])
-        })
-        .collect();
-    let owner: Vec<u32> = graph.file_face.iter().map(|&f| cluster[f as usize]).collect();
-    let half = (side / 2) as f32;
-    let w = pixels(&graph, &uv, &owner, g, sample, tileable, texels_per_unit, half);
+    let w = resampler.pixels(g, (side / 2) as f32);
     let side = 2 * (side / 2) + 1;
     let at = |x: usize, y: usize| w.owners[y * side + x];
     let rgb = (0..side * side)
@@ -312,107 +280,117 @@ pub fn close_up(
     Ok(Some(Picture { width: side, height: side, rgb }))
 }
 
-/// The window around face `f`; None if part of it lies off the surface.
-#[allow(clippy::too_many_arguments)]
-fn window(
-    graph: &SurfaceGraph,
-    uv: &[[Vec2; 3]],
-    owner: &[u32],
-    f: u32,
-    sample: &Picture,
+/// What resampling windows on a mapped surface needs: its face graph, per graph face its
+/// coordinates in its own corner order and its patch, and the sample.
+struct Resampler<'a> {
+    graph: SurfaceGraph,
+    uv: Vec<[Vec2; 3]>,
+    owner: Vec<u32>,
+    sample: &'a Picture,
     tileable: bool,
     scale: f32,
-    half: f32,
-) -> Option<Window> {
-    let w = pixels(graph, uv, owner, f, sample, tileable, scale, half);
-    (!w.values.iter().any(|v| v.is_nan())).then_some(w)
 }
 
-/// The `2 half + 1` pixels square around face `f`, NaN (and owner `NONE`) off the surface.
-#[allow(clippy::too_many_arguments)]
-fn pixels(
-    graph: &SurfaceGraph,
-    uv: &[[Vec2; 3]],
-    owner: &[u32],
-    f: u32,
-    sample: &Picture,
-    tileable: bool,
-    scale: f32,
-    half: f32,
-) -> Window {
-    let side = 2 * half as usize + 1;
-    let t = graph.corners[f as usize];
-    let centre = (uv[f as usize][0] + uv[f as usize][1] + uv[f as usize][2]) / 3.0;
-    // The window's frame: face f's own texture coordinates, then its neighbours unfolded.
-    let mut placed: HashMap<u32, Vec2> = (0..3).map(|k| (t[k], uv[f as usize][k])).collect();
-    let mut faces: Vec<(u32, [Vec2; 3])> = vec![(f, uv[f as usize])];
-    let mut seen: HashMap<u32, ()> = HashMap::from([(f, ())]);
-    let mut queue: VecDeque<u32> = graph.across[f as usize].iter().copied().filter(|&g| g != NONE).collect();
-    queue.iter().for_each(|&g| {
-        seen.insert(g, ());
-    });
-    let reach = 2.0 * half + 2.0;
-    let [u0, u1, u2] = uv[f as usize];
-    let clockwise = (u1 - u0).perp_dot(u2 - u0) < 0.0;
-    while let Some(g) = queue.pop_front() {
-        let c = graph.corners[g as usize];
-        let known: Vec<bool> = c.iter().map(|v| placed.contains_key(v)).collect();
-        if known.iter().filter(|&&k| k).count() == 2 {
-            let k = (0..3).find(|&k| known[k] && known[(k + 1) % 3]).unwrap_or(0);
-            let (a, b, apex) = (c[k], c[(k + 1) % 3], c[(k + 2) % 3]);
-            let p = |v: u32| graph.positions[v as usize];
-            let (la, lb) = (p(a).distance(p(apex)) * scale, p(b).distance(p(apex)) * scale);
-            // The apex lies on the side of a → b that keeps g's winding in the window's
-            // frame: the left where face f's coordinates turn counter-clockwise, the right
-            // where they turn clockwise (the mapping mirrors the chart into image rows).
-            let at = if clockwise {
-                unfold(placed[&b], placed[&a], lb, la)
-            } else {
-                unfold(placed[&a], placed[&b], la, lb)
-            };
-            placed.insert(apex, at);
-        } else if known.iter().any(|&k| !k) {
-            continue;
-        }
-        let corners = c.map(|v| placed[&v]);
-        faces.push((g, corners));
-        if corners.iter().all(|p| p.distance(centre) > reach) {
-            continue;
-        }
-        for &n in &graph.across[g as usize] {
-            if n != NONE && seen.insert(n, ()).is_none() {
-                queue.push_back(n);
-            }
-        }
+impl<'a> Resampler<'a> {
+    fn new(surface: &MappedSurface<'a>) -> Result<Self> {
+        let graph = SurfaceGraph::new(surface.positions, surface.triangles, Path::new("<mapped mesh>"))?;
+        let uv = (0..graph.face_count())
+            .map(|g| {
+                let f = graph.file_face[g] as usize;
+                let order = graph.file_corner[g];
+                [0, 1, 2].map(|k| surface.corner_uv[f][order[k] as usize])
+            })
+            .collect();
+        let owner = graph.file_face.iter().map(|&f| surface.cluster[f as usize]).collect();
+        let (sample, tileable, scale) = (surface.sample, surface.tileable, surface.texels_per_unit);
+        Ok(Resampler { graph, uv, owner, sample, tileable, scale })
     }
-    let origin = centre - Vec2::splat(half);
-    let mut values = vec![f32::NAN; side * side * 3];
-    let mut patches: Vec<(u32, usize)> = Vec::new();
-    let mut shown: Vec<u32> = Vec::new();
-    let mut owners = vec![NONE; side * side];
-    for (g, corners) in &faces {
-        let p = corners.map(|c| c - origin);
-        let tex = uv[*g as usize];
-        raster(&p, side, side, |x, y, b| {
-            let o = (y * side + x) * 3;
-            if !values[o].is_nan() {
-                return;
-            }
-            owners[y * side + x] = owner[*g as usize];
-            let s = b[0] * tex[0] + b[1] * tex[1] + b[2] * tex[2];
-            let rgb = bilinear(sample, s, tileable);
-            values[o..o + 3].copy_from_slice(&rgb);
-            match patches.iter_mut().find(|(c, _)| *c == owner[*g as usize]) {
-                Some((_, n)) => *n += 1,
-                None => patches.push((owner[*g as usize], 1)),
-            }
-            if shown.last() != Some(g) {
-                shown.push(*g);
-            }
+
+    /// The window around face `f`; None if part of it lies off the surface.
+    fn window(&self, f: u32, half: f32) -> Option<Window> {
+        let w = self.pixels(f, half);
+        (!w.values.iter().any(|v| v.is_nan())).then_some(w)
+    }
+
+    /// The `2 half + 1` pixels square around face `f`, NaN (and owner `NONE`) off the surface.
+    fn pixels(&self, f: u32, half: f32) -> Window {
+        let (graph, uv, owner) = (&self.graph, &self.uv[..], &self.owner[..]);
+        let (sample, tileable, scale) = (self.sample, self.tileable, self.scale);
+        let side = 2 * half as usize + 1;
+        let t = graph.corners[f as usize];
+        let centre = (uv[f as usize][0] + uv[f as usize][1] + uv[f as usize][2]) / 3.0;
+        // The window's frame: face f's own texture coordinates, then its neighbours unfolded.
+        let mut placed: HashMap<u32, Vec2> = (0..3).map(|k| (t[k], uv[f as usize][k])).collect();
+        let mut faces: Vec<(u32, [Vec2; 3])> = vec![(f, uv[f as usize])];
+        let mut seen: HashMap<u32, ()> = HashMap::from([(f, ())]);
+        let mut queue: VecDeque<u32> =
+            graph.across[f as usize].iter().copied().filter(|&g| g != NONE).collect();
+        queue.iter().for_each(|&g| {
+            seen.insert(g, ());
         });
+        let reach = 2.0 * half + 2.0;
+        let [u0, u1, u2] = uv[f as usize];
+        let clockwise = (u1 - u0).perp_dot(u2 - u0) < 0.0;
+        while let Some(g) = queue.pop_front() {
+            let c = graph.corners[g as usize];
+            let known: Vec<bool> = c.iter().map(|v| placed.contains_key(v)).collect();
+            if known.iter().filter(|&&k| k).count() == 2 {
+                let k = (0..3).find(|&k| known[k] && known[(k + 1) % 3]).unwrap_or(0);
+                let (a, b, apex) = (c[k], c[(k + 1) % 3], c[(k + 2) % 3]);
+                let p = |v: u32| graph.positions[v as usize];
+                let (la, lb) = (p(a).distance(p(apex)) * scale, p(b).distance(p(apex)) * scale);
+                // The apex lies on the side of a → b that keeps g's winding in the window's
+                // frame: the left where face f's coordinates turn counter-clockwise, the right
+                // where they turn clockwise (the mapping mirrors the chart into image rows).
+                let at = if clockwise {
+                    unfold(placed[&b], placed[&a], lb, la)
+                } else {
+                    unfold(placed[&a], placed[&b], la, lb)
+                };
+                placed.insert(apex, at);
+            } else if known.iter().any(|&k| !k) {
+                continue;
+            }
+            let corners = c.map(|v| placed[&v]);
+            faces.push((g, corners));
+            if corners.iter().all(|p| p.distance(centre) > reach) {
+                continue;
+            }
+            for &n in &graph.across[g as usize] {
+                if n != NONE && seen.insert(n, ()).is_none() {
+                    queue.push_back(n);
+                }
+            }
+        }
+        let origin = centre - Vec2::splat(half);
+        let mut values = vec![f32::NAN; side * side * 3];
+        let mut patches: Vec<(u32, usize)> = Vec::new();
+        let mut shown: Vec<u32> = Vec::new();
+        let mut owners = vec![NONE; side * side];
+        for (g, corners) in &faces {
+            let p = corners.map(|c| c - origin);
+            let tex = uv[*g as usize];
+            raster(&p, side, side, |x, y, b| {
+                let o = (y * side + x) * 3;
+                if !values[o].is_nan() {
+                    return;
+                }
+                owners[y * side + x] = owner[*g as usize];
+                let s = b[0] * tex[0] + b[1] * tex[1] + b[2] * tex[2];
+                let rgb = bilinear(sample, s, tileable);
+                values[o..o + 3].copy_from_slice(&rgb);
+                match patches.iter_mut().find(|(c, _)| *c == owner[*g as usize]) {
+                    Some((_, n)) => *n += 1,
+                    None => patches.push((owner[*g as usize], 1)),
+                }
+                if shown.last() != Some(g) {
+                    shown.push(*g);
+                }
+            });
+        }
+        patches.sort_by_key(|&(c, n)| (std::cmp::Reverse(n), c));
+        Window { values, patches, faces: shown, owners }
     }
-    patches.sort_by_key(|&(c, n)| (std::cmp::Reverse(n), c));
-    Window { values, patches, faces: shown, owners }
 }
 
 fn bilinear(picture: &Picture, s: Vec2, tileable: bool) -> [f32; 3] {
@@ -455,7 +433,6 @@ mod tests {
     #[test]
     fn a_rigid_map_windows_the_sample_itself_either_way_round() {
         let (positions, triangles) = super::super::graph::tests::grid(6);
-        let graph = SurfaceGraph::new(&positions, &triangles, Path::new("grid")).expect("grid");
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let side = 64;
         let sample = Picture {
@@ -465,6 +442,7 @@ mod tests {
         };
         let scale = 40.0;
         for mirrored in [false, true] {
+            let graph = SurfaceGraph::new(&positions, &triangles, Path::new("grid")).expect("grid");
             let to_uv = |p: Vec3| {
                 let y = if mirrored { 1.0 - p.y } else { p.y };
                 Vec2::new(12.0 + scale * p.x, 12.0 + scale * y)
@@ -472,9 +450,11 @@ mod tests {
             let uv: Vec<[Vec2; 3]> =
                 graph.corners.iter().map(|c| c.map(|v| to_uv(graph.positions[v as usize]))).collect();
             let owner = vec![0u32; graph.face_count()];
+            let resampler = Resampler { graph, uv, owner, sample: &sample, tileable: false, scale };
+            let (graph, uv) = (&resampler.graph, &resampler.uv);
             let mut checked = 0;
             for f in 0..graph.face_count() as u32 {
-                let Some(w) = window(&graph, &uv, &owner, f, &sample, false, scale, 3.0) else { continue };
+                let Some(w) = resampler.window(f, 3.0) else { continue };
                 let centre = (uv[f as usize][0] + uv[f as usize][1] + uv[f as usize][2]) / 3.0;
                 for i in 0..PATCH_SIDE * PATCH_SIDE {
                     let at = centre - Vec2::splat(3.0)
@@ -529,17 +509,16 @@ mod tests {
                 &crate::progress::Silent,
             )
             .expect("mapped");
-            let q = seam_quality(
-                &mesh.positions,
-                &mesh.triangles,
-                &m.corner_uv,
-                &m.cluster,
-                &sample,
-                false,
-                scale,
-                (3000, 1),
-            )
-            .expect("measured");
+            let surface = MappedSurface {
+                positions: &mesh.positions,
+                triangles: &mesh.triangles,
+                corner_uv: &m.corner_uv,
+                cluster: &m.cluster,
+                sample: &sample,
+                tileable: false,
+                texels_per_unit: scale,
+            };
+            let q = seam_quality(&surface, (3000, 1)).expect("measured");
             let jump = border_discontinuity(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit)
                 .expect("measured");
             (q, jump, m.report)
