@@ -76,16 +76,7 @@ pub fn upload(
     format: wgpu::TextureFormat,
 ) -> wgpu::Texture {
     let (lw, lh) = layout.layer_size();
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("sample image atlas"),
-        size: wgpu::Extent3d { width: lw, height: lh, depth_or_array_layers: layout.layers },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let texture = sampled_array(device, "sample image atlas", (lw, lh, layout.layers), format);
     let half = format == wgpu::TextureFormat::Rgba16Float;
     for i in 0..material.len() {
         let rgb = material.image(i as u32);
@@ -113,6 +104,26 @@ pub fn upload(
         );
     }
     texture
+}
+
+/// An empty 2D texture array of `layers` layers of `width × height` in `format`, for the
+/// shader to sample and the CPU to fill.
+pub fn sampled_array(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height, layers): (u32, u32, u32),
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: layers },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
 }
 
 #[cfg(test)]

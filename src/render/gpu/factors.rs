@@ -135,16 +135,8 @@ pub fn upload_texels(
     layout: &FactorLayout,
 ) -> wgpu::Texture {
     let (w, h) = (layout.width, layout.height);
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("sample texel factors"),
-        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: layout.layers },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let format = wgpu::TextureFormat::Rgba32Float;
+    let texture = super::atlas::sampled_array(device, "sample texel factors", (w, h, layout.layers), format);
     let groups = group_channels(layout);
     for (layer, &(c, first)) in groups.iter().enumerate() {
         let texels = &f.texel[c];
