@@ -11,23 +11,47 @@
 //! [`btf::gen`] makes synthetic ground truth by ray-tracing height fields.
 //!
 //! The whole path runs in memory; the disk is only an adapter (`analysis::store`,
-//! `synth::plane::write_plane`, the command line). Generate a small BTF, analyse it and
-//! synthesize a larger plane from it:
+//! `synth::plane::write_plane`, `synth::surface_map::write_surface_ply`, `export::export`,
+//! the command line). Generate a small BTF, analyse it, synthesize a plane and the bundled
+//! bunny from it, render the bunny and bake it into a glTF document
+//! (`examples/pipeline.rs` is the same path, with the outputs saved if asked):
 //!
 //! ```
 //! use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
 //! use btfsynth::btf::{self, gen::{GenParams, MaterialKind}, DirectionSet};
+//! use btfsynth::export::{bake_export, ExportOptions, ExportSource, SourceNames};
+//! use btfsynth::mesh::{field::Orientation, textured::load_textured};
 //! use btfsynth::progress::Silent;
+//! use btfsynth::render::{cpu::{render, RenderOptions}, tracer::Tracer, Material, Scene, ShotPlan};
+//! use btfsynth::synth::surface_map::{build_pyramid, synthesize_surface, Density, SurfaceMap};
 //! use btfsynth::synth::{plane::synthesize_plane, Sample, SynthParams};
 //!
 //! let params = GenParams { size: 32, samples_per_pixel: 1, directions: DirectionSet::Grid(4), ..GenParams::default() };
 //! let stack = btf::gen::generate(MaterialKind::Pebbles, &params, &Silent)?;
 //! let analysis = analyze(&stack, &AnalysisParams { textons: 64, levels: 2, ..AnalysisParams::default() }, &Silent)?;
 //! let sample = Sample::from_analysis(&analysis, &stack, analysis.levels.len())?;
-//! let plane = synthesize_plane(&sample, (64, 64), false, &SynthParams::default(), &Silent)?;
-//! // Per output pixel: a texton and the sample coordinate it copies.
+//! let synth = SynthParams::default();
+//!
+//! // A plane: per output pixel, a texton and the sample coordinate it copies.
+//! let plane = synthesize_plane(&sample, (64, 64), false, &synth, &Silent)?;
 //! let [u, v] = plane.state.uv[0];
 //! assert!((0..32).contains(&u) && (0..32).contains(&v));
+//!
+//! // A mesh: the same per vertex of a remeshed pyramid, then a render and a glTF.
+//! let bunny = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/bunny-1k8.obj");
+//! let pyramid = build_pyramid(&btfsynth::mesh::load(&bunny)?, Density::Vertices(3_000), 2, &Orientation::Smooth, &synth, &Silent)?;
+//! let (state, _) = synthesize_surface(&pyramid, &sample, &synth, &Silent)?;
+//! let scene = Scene::from_surface_map(SurfaceMap::from_synthesis(&pyramid.levels[0], &state));
+//! let material = Material::from_btf(&stack)?;
+//! let shot = ShotPlan { size: (64, 64), ..ShotPlan::default() }.shots(scene.mesh.bounds())[0];
+//! let frame = render(&scene, &material, &Tracer::new(&scene.mesh), &shot, RenderOptions::default(), None);
+//! assert!(frame.rgba.chunks_exact(4).any(|p| p[3] > 0.0), "the bunny is in view");
+//! let original = load_textured(&bunny)?;
+//! let names = SourceNames { surface: "(memory)".as_ref(), analysis: "(memory)".as_ref(), mesh: &bunny };
+//! let source = ExportSource { scene: &scene, material: &material, maps: &[], mesh: Some(&original), names };
+//! let options = ExportOptions { size: Some(64), ..ExportOptions::default() };
+//! let glb = bake_export("bunny", &source, &options, &Silent)?.document.to_glb();
+//! assert_eq!(&glb[..4], b"glTF");
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 

@@ -9,10 +9,11 @@ use btfsynth::btf::{load, write_stack, Btf, DirectionSet, ImageFormat, LoadOptio
 use btfsynth::fsutil::StagedDir;
 use btfsynth::mesh::field::Orientation;
 use btfsynth::render::cpu::{render_sequence, RenderOptions};
-use btfsynth::render::scene::open_surface;
-use btfsynth::render::{FrameFormat, Material, Orbit, SequenceWriter, ShotPlan};
+use btfsynth::render::{FrameFormat, Material, Orbit, Scene, SequenceWriter, ShotPlan};
 use btfsynth::synth::plane::{synthesize_plane, write_plane};
-use btfsynth::synth::surface_map::{build_pyramid, synthesize_surface, write_surface_ply, Density};
+use btfsynth::synth::surface_map::{
+    build_pyramid, synthesize_surface, write_surface_ply, Density, SurfaceMap,
+};
 use btfsynth::synth::{Sample, Search, SynthParams};
 use std::path::{Path, PathBuf};
 
@@ -97,7 +98,7 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     printed.push(serde_json::to_string_pretty(&super::info::stack_json(&shown("stack"), &reloaded))?);
 
     eprintln!("[2/6] texton analysis (200 textons, 3 levels, k = 11) and a 192x192 synthesized plane");
-    let manifest = analyse_and_synthesize(
+    let (manifest, sample) = analyse_and_synthesize(
         &reloaded,
         &out("stack"),
         AnalysisParams { textons: 200, ..AnalysisParams::default() },
@@ -112,7 +113,7 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     let photo = load(&texture, &LoadOptions::default(), bars)?;
     printed.push(serde_json::to_string_pretty(&super::info::stack_json(&texture, &photo))?);
     eprintln!("[4/6] texture synthesis from the photograph: analysis and a 192x192 plane");
-    let manifest = analyse_and_synthesize(
+    let (manifest, _) = analyse_and_synthesize(
         &photo,
         &texture,
         AnalysisParams::default(),
@@ -123,11 +124,11 @@ pub fn run(args: DemoArgs, bars: &Bars) -> Result<()> {
     printed.push(relocation.json_text(super::info::analysis_json(&manifest))?);
     let bunny = data.join("bunny-1k8.obj");
     eprintln!("[5/6] the pebbles BTF on {}: a 20k-vertex surface texton map", bunny.display());
-    surface_map(&out("analysis"), &bunny, &out("bunny.ply"), bars)?;
+    let scene = surface_map(&sample, (&out("analysis"), &bunny), &out("bunny.ply"), bars)?;
     eprintln!(
         "[6/6] rendering a {DEMO_FRAMES}-frame sun orbit under a sky, beside the sample under the same light"
     );
-    light_orbit(&out("bunny.ply"), &out("frames"), bars)?;
+    light_orbit((&scene, &Material::from_btf(&reloaded)?), &out("frames"), bars)?;
     // The outputs name each other by the paths they were written at; they are about to move.
     for name in [
         "analysis/analysis.json",
@@ -241,42 +242,37 @@ impl Relocation {
 /// Frames of the demo's light orbit.
 const DEMO_FRAMES: usize = 16;
 
-/// Renders the surface map under a sun circling at 45° elevation and the built-in sky, EXR
-/// and PNG frames.
-fn light_orbit(surface: &Path, dir: &Path, bars: &Bars) -> Result<()> {
-    let (scene, analysis) = open_surface(surface, None, true)?;
-    let material = Material::open(&analysis)?;
+/// Renders the surface under a sun circling at 45° elevation and the built-in sky, EXR and
+/// PNG frames.
+fn light_orbit((scene, material): (&Scene, &Material), dir: &Path, bars: &Bars) -> Result<()> {
     let plan = ShotPlan { size: (384, 384), frames: DEMO_FRAMES, orbit: Orbit::Light, ..ShotPlan::default() };
     let mut writer = SequenceWriter::new(dir, &[FrameFormat::Exr, FrameFormat::Png], true)?;
     // The sky lights what the orbiting sun leaves in shadow (`render --env sky`).
     let sky = btfsynth::render::Environment::sky();
-    render_sequence(
-        (&scene, &material),
-        &plan,
-        RenderOptions::default(),
-        Some(&sky),
-        true,
-        &mut writer,
-        bars,
-    )?;
+    render_sequence((scene, material), &plan, RenderOptions::default(), Some(&sky), true, &mut writer, bars)?;
     writer.finish()?;
     Ok(())
 }
 
-/// Synthesizes the analysis in `analysis_dir` onto `mesh` (20k vertices, smooth frames).
-fn surface_map(analysis_dir: &Path, mesh: &Path, output: &Path, bars: &Bars) -> Result<()> {
-    let sample = Sample::open(analysis_dir, 3)?;
+/// Synthesizes `sample` (stored in `analysis_dir`) onto `mesh` (20k vertices, smooth
+/// frames), writes the surface map to `output` and returns the surface as a scene.
+fn surface_map(
+    sample: &Sample,
+    (analysis_dir, mesh): (&Path, &Path),
+    output: &Path,
+    bars: &Bars,
+) -> Result<Scene> {
     let params = SynthParams::default();
     let input = btfsynth::mesh::load(mesh)?;
     let pyramid = build_pyramid(&input, Density::Vertices(20_000), 3, &Orientation::Smooth, &params, bars)?;
-    let (state, _) = synthesize_surface(&pyramid, &sample, &params, bars)?;
+    let (state, _) = synthesize_surface(&pyramid, sample, &params, bars)?;
     let params_json = serde_json::json!({"preset": params.preset.name, "k": 11, "levels": 3, "neighborhood": params.neighborhood, "orient": "smooth", "seed": params.seed});
     write_surface_ply(output, &pyramid.levels[0], &state, (analysis_dir, mesh), &params_json)?;
-    Ok(())
+    Ok(Scene::from_surface_map(SurfaceMap::from_synthesis(&pyramid.levels[0], &state)))
 }
 
 /// Analyses `stack` into `analysis_dir` and synthesizes a 192×192 plane from it into
-/// `plane_dir`; returns the analysis' manifest.
+/// `plane_dir`; returns the analysis' manifest and its sample (in memory).
 fn analyse_and_synthesize(
     stack: &Btf,
     source: &Path,
@@ -284,11 +280,11 @@ fn analyse_and_synthesize(
     analysis_dir: &Path,
     plane_dir: &Path,
     bars: &Bars,
-) -> Result<btfsynth::analysis::store::Manifest> {
+) -> Result<(btfsynth::analysis::store::Manifest, Sample)> {
     let analysis = analyze(stack, &params, bars)?;
     store::write(&analysis, stack, source, None, analysis_dir, true)?;
     let manifest = store::read_manifest(analysis_dir)?;
-    let sample = Sample::open(analysis_dir, params.levels)?;
+    let sample = Sample::from_analysis(&analysis, stack, params.levels)?;
     let synth = SynthParams { search: Search::KCoherence { k: params.k }, ..SynthParams::default() };
     let mut plane = synthesize_plane(&sample, (192, 192), false, &synth, bars)?;
     super::synth::untimed(&mut plane.reports);
@@ -300,5 +296,5 @@ fn analyse_and_synthesize(
         plane_dir,
         true,
     )?;
-    Ok(manifest)
+    Ok((manifest, sample))
 }

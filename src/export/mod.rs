@@ -23,7 +23,7 @@ mod uvmap;
 
 use crate::btf::Direction;
 use crate::fsutil::{check_not_input, check_target, commit_all, Staged};
-use crate::maps::{stored::open_maps, MapKind};
+use crate::maps::{stored::open_maps, MapKind, MaterialMap};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::textured::{load_textured, TexturedMesh};
 use crate::progress::Progress;
@@ -111,7 +111,9 @@ pub struct AtlasReport {
     pub maps: Vec<MapKind>,
 }
 
-/// Exports the surface map at `surface` to `output` (`.glb`, or `.gltf` with files beside it).
+/// Exports the surface map at `surface` to `output` (`.glb`, or `.gltf` with files beside it):
+/// the disk adapter of [`bake_export`], which reads the map, its analysis (sample and
+/// material maps) and the original mesh, and writes the document all or nothing.
 pub fn export(
     surface: &Path,
     output: &Path,
@@ -139,43 +141,109 @@ pub fn export(
         check_not_input("-o", &file, &[surface, &analysis_dir])?;
     }
     let material = Material::open(&analysis_dir)?;
-    let light = options.light.filter(|_| material.len() > 1);
-    if options.light.is_some() && light.is_none() {
-        tracing::warn!("{}: a one-image BTF has one light; --light is ignored", analysis_dir.display());
-    }
-    let look = Look { scene: &scene, material: &material, blend: bake_blend(&material, light), light };
-    let name = stem(output);
-    let mut seconds = [started.elapsed().as_secs_f64(), 0.0, 0.0, 0.0];
-    let (document, atlas) = if options.vertex_colours {
-        let started = Instant::now();
-        let colours = vertex_colours(&scene, &material, &look.blend);
-        seconds[2] = started.elapsed().as_secs_f64();
-        (vertex_colour_document(&name, &scene, &colours, look.provenance(surface, &analysis_dir)), None)
+    let (mesh, mesh_path, maps) = if options.vertex_colours {
+        (None, PathBuf::new(), Vec::new())
     } else {
         let mesh_path = original_mesh(surface, options.mesh.as_deref())?;
-        let mesh = load_textured(&mesh_path)?;
-        let maps = open_maps(&analysis_dir)?
-            .iter()
-            .map(|m| MapLookup::new(m, material.tileable))
-            .collect::<Result<Vec<_>>>()?;
-        seconds[0] = started.elapsed().as_secs_f64();
-        let job = TexturedJob {
-            name: &name,
-            mesh: &mesh,
-            mesh_path: &mesh_path,
-            look: &look,
-            maps: &maps,
-            options,
-            direct: false,
-        };
-        let (document, atlas) = job.run(look.provenance(surface, &analysis_dir), &mut seconds, progress)?;
-        (document, Some(atlas))
+        (Some(load_textured(&mesh_path)?), mesh_path, open_maps(&analysis_dir)?)
     };
+    let read_seconds = started.elapsed().as_secs_f64();
+    let names = SourceNames { surface, analysis: &analysis_dir, mesh: &mesh_path };
+    let source = ExportSource { scene: &scene, material: &material, maps: &maps, mesh: mesh.as_ref(), names };
+    let mut exported = bake_export(&stem(output), &source, options, progress)?;
+    exported.seconds[0] += read_seconds;
     let started = Instant::now();
-    let (vertices, triangles) = document.counts();
-    let files = write_document(document, output, binary, options.overwrite)?;
-    seconds[3] += started.elapsed().as_secs_f64();
-    Ok(ExportReport { files, vertices, triangles, atlas, seconds })
+    let (vertices, triangles) = exported.document.counts();
+    let files = write_document(exported.document, output, binary, options.overwrite)?;
+    exported.seconds[3] += started.elapsed().as_secs_f64();
+    Ok(ExportReport { files, vertices, triangles, atlas: exported.atlas, seconds: exported.seconds })
+}
+
+/// A synthesized surface to export, all in memory: what [`export`] reads from a surface map,
+/// its analysis and the original mesh, for a caller that holds them already.
+pub struct ExportSource<'a> {
+    /// The synthesized surface ([`Scene::from_surface_map`]).
+    pub scene: &'a Scene,
+    /// The sample it was synthesized from ([`Material::from_btf`], [`Material::open`]).
+    pub material: &'a Material,
+    /// Material maps baked beside the colour ([`ExportOptions::vertex_colours`] bakes none).
+    pub maps: &'a [MaterialMap],
+    /// The user's own mesh exactly as its file gives it: the geometry and (with its UVs)
+    /// the layout of a textured export. A vertex-colour export needs none.
+    pub mesh: Option<&'a TexturedMesh>,
+    /// What the provenance and the errors call the inputs; nothing is read from them.
+    pub names: SourceNames<'a>,
+}
+
+/// The names an [`ExportSource`]'s parts go by: the files [`export`] read them from, or
+/// any label a caller working in memory chooses.
+#[derive(Clone, Copy, Debug)]
+pub struct SourceNames<'a> {
+    /// The surface map.
+    pub surface: &'a Path,
+    /// The analysis of its sample.
+    pub analysis: &'a Path,
+    /// The original mesh.
+    pub mesh: &'a Path,
+}
+
+/// What [`bake_export`] made: a glTF document ([`Document::to_glb`] gives its bytes).
+pub struct Exported {
+    /// The mesh, its textures and material.
+    pub document: Document,
+    /// The atlas, unless vertex colours were baked.
+    pub atlas: Option<AtlasReport>,
+    /// Seconds spent: preparing, laying out, baking and encoding (the last slot also takes
+    /// [`export`]'s writing).
+    pub seconds: [f64; 4],
+}
+
+/// Bakes `source` into a glTF document named `name`, in memory: the user's mesh with
+/// textures in its own or a generated layout, or with [`ExportOptions::vertex_colours`] the
+/// dense synthesized mesh with a colour per vertex. The options' file fields (`mesh`,
+/// `analysis`, `overwrite`) are [`export`]'s and are not read here.
+pub fn bake_export(
+    name: &str,
+    source: &ExportSource<'_>,
+    options: &ExportOptions,
+    progress: &dyn Progress,
+) -> Result<Exported> {
+    let started = Instant::now();
+    let material = source.material;
+    let light = options.light.filter(|_| material.len() > 1);
+    if options.light.is_some() && light.is_none() {
+        tracing::warn!(
+            "{}: a one-image BTF has one light; --light is ignored",
+            source.names.analysis.display()
+        );
+    }
+    let look = Look { scene: source.scene, material, blend: bake_blend(material, light), light };
+    let provenance = look.provenance(source.names.surface, source.names.analysis);
+    let mut seconds = [started.elapsed().as_secs_f64(), 0.0, 0.0, 0.0];
+    if options.vertex_colours {
+        let started = Instant::now();
+        let colours = vertex_colours(source.scene, material, &look.blend);
+        seconds[2] = started.elapsed().as_secs_f64();
+        let document = vertex_colour_document(name, source.scene, &colours, provenance);
+        return Ok(Exported { document, atlas: None, seconds });
+    }
+    let Some(mesh) = source.mesh else {
+        return Err(Error::invalid("a textured export needs the original mesh (or vertex colours)"));
+    };
+    let maps =
+        source.maps.iter().map(|m| MapLookup::new(m, material.tileable)).collect::<Result<Vec<_>>>()?;
+    seconds[0] = started.elapsed().as_secs_f64();
+    let job = TexturedJob {
+        name,
+        mesh,
+        mesh_path: source.names.mesh,
+        look: &look,
+        maps: &maps,
+        options,
+        direct: false,
+    };
+    let (document, atlas) = job.run(provenance, &mut seconds, progress)?;
+    Ok(Exported { document, atlas: Some(atlas), seconds })
 }
 
 /// What the colour shows: the synthesized surface, its BTF and the image baked.

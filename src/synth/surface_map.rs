@@ -274,6 +274,15 @@ pub struct SurfaceMap {
 }
 
 impl SurfaceMap {
+    /// The surface map of a synthesis held in memory: `state` on the finest `level`, as
+    /// [`read_surface_ply`] reads it back from [`write_surface_ply`]'s file (no comments).
+    pub fn from_synthesis(level: &MeshLevel, state: &State) -> SurfaceMap {
+        // The normals a reader recomputes, not the level's own, so both ways agree.
+        let mesh = level.mesh.clone().with_normals();
+        let frames = Frames::from_directions(mesh.normals().unwrap_or(&[]), &level.frames.s);
+        SurfaceMap { mesh, frames, state: state.clone(), texel: level.texel, comments: Vec::new() }
+    }
+
     /// The value of the header comment `KEY value`, if there is one.
     pub fn comment(&self, key: &str) -> Option<&str> {
         comment_value(&self.comments, key)
