@@ -4,7 +4,7 @@
 //!   is valid by construction: indices in range, finite coordinates, no degenerate faces,
 //!   coincident vertices welded, every edge shared by at most two consistently oriented
 //!   faces and every vertex a single fan (see [`prepare`]).
-//! - [`load`](mod@load): OBJ (through `tobj`), OFF and PLY (ASCII and binary), picked by extension.
+//! - [`load`](mod@load): OBJ, OFF and PLY (ASCII and binary), picked by extension.
 //! - [`topology`]: edges, one-rings, boundaries, connected components.
 //! - [`field`]: per-vertex direction fields (smooth, one axis, or user constraints) and
 //!   the tangent frames they give.

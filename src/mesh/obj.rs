@@ -1,73 +1,142 @@
-//! Wavefront OBJ through `tobj`: positions and faces only; polygons are fan-triangulated
-//! and negative (relative) indices resolved.
+//! Wavefront OBJ: the one reader of `v`, `vt`, `f`, `o` and `g` lines (everything else is
+//! ignored; materials are never opened). Polygons are fan-triangulated, negative (relative)
+//! indices resolved, and texture coordinates kept where every face has them.
 //!
-//! Only `v`, `f`, `o` and `g` lines reach `tobj`, and face corners lose their `/vt/vn`
-//! parts first. Texture coordinates and normals are not needed (normals are recomputed),
-//! and `tobj` trusts them: it drops out-of-range ones silently and can overflow on huge
-//! ones. Materials are never opened.
+//! Two views of one parse: [`parse`] gives [`load`](super::load()) a soup whose vertices are
+//! numbered per object in the order faces first use them (the order meshes have always
+//! loaded in, so results stay the same), and [`super::textured::read_obj`] keeps the
+//! file's own arrays, which export writes back with the file's UV seams.
 
 use super::Soup;
 use crate::{Error, Result};
+use glam::Vec2;
+use std::collections::HashMap;
 use std::path::Path;
 
-/// Parses OBJ text (bytes that are not UTF-8 are replaced, as they can only occur in names
-/// and comments of a valid file).
-pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
-    let text = String::from_utf8_lossy(bytes);
-    let geometry = geometry_lines(&text);
-    let options =
-        tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
-    let (models, _) =
-        tobj::load_obj_buf(&mut geometry.as_bytes(), &options, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| Error::format(path, format!("not a valid OBJ file: {e}")))?;
-    concatenate(models, path)
+/// An OBJ file as it is written: indices into the file's own arrays, counted from 0.
+pub(crate) struct ObjFile {
+    /// Every `v` line and the fan-triangulated faces.
+    pub soup: Soup,
+    /// Every `vt` line and, per triangle, its corners' indices into them, if every face
+    /// has texture coordinates.
+    pub uvs: Option<(Vec<Vec2>, Vec<[i64; 3]>)>,
+    /// The first triangle of each object or group after the first (an `o` or `g` line
+    /// that follows faces).
+    objects: Vec<usize>,
 }
 
-/// The `v`, `f`, `o`, `g` lines of `text`, face corners reduced to their position index.
-fn geometry_lines(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for line in text.lines() {
+/// Parses OBJ text for [`load`](super::load()): per object, the vertices its faces use, in
+/// the order they first use them; shared vertices end up duplicated and are welded later.
+pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
+    read(bytes, path)?.per_object(path)
+}
+
+/// Parses OBJ text (bytes that are not UTF-8 are replaced, as they can only occur in names
+/// and comments of a valid file). Out-of-range indices are left for the caller to report.
+pub(crate) fn read(bytes: &[u8], path: &Path) -> Result<ObjFile> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut soup = Soup::default();
+    let mut coords: Vec<Vec2> = Vec::new();
+    let mut uv_corners: Vec<[i64; 3]> = Vec::new();
+    let mut objects = Vec::new();
+    let mut every_face_has_uvs = true;
+    for (n, line) in text.lines().enumerate() {
+        let bad = |m: String| Error::format(path, format!("line {}: {m}", n + 1));
         let mut words = line.split_whitespace();
         match words.next() {
-            Some(kind @ ("v" | "o" | "g")) => {
-                out.push_str(kind);
-                words.for_each(|w| {
-                    out.push(' ');
-                    out.push_str(w);
-                });
+            Some("v") => soup.positions.push(numbers::<3>(words, 3).map_err(bad)?.map(f64::from)),
+            Some("vt") => {
+                let [u, v] = numbers::<2>(words, 1).map_err(bad)?;
+                coords.push(Vec2::new(u, v));
+            }
+            Some("o" | "g") if objects.last().copied().unwrap_or(0) < soup.triangles.len() => {
+                objects.push(soup.triangles.len())
             }
             Some("f") => {
-                out.push('f');
-                words.for_each(|w| {
-                    out.push(' ');
-                    out.push_str(w.split('/').next().unwrap_or(w));
-                });
+                let (mut polygon, mut uvs) = (Vec::new(), Vec::new());
+                for corner in words {
+                    let mut parts = corner.split('/');
+                    let v = parts.next().unwrap_or_default();
+                    polygon.push(index(v, soup.positions.len()).map_err(bad)?);
+                    match parts.next().filter(|t| !t.is_empty()) {
+                        Some(t) => uvs.push(index(t, coords.len()).map_err(bad)?),
+                        None => every_face_has_uvs = false,
+                    }
+                }
+                if polygon.len() < 3 {
+                    return Err(bad("a face needs at least three corners".into()));
+                }
+                Soup::fan_triangulate(&polygon, &mut soup.triangles);
+                Soup::fan_triangulate(&uvs, &mut uv_corners);
             }
-            _ => continue,
+            _ => {}
         }
-        out.push('\n');
     }
-    out
+    let uvs = (every_face_has_uvs && !coords.is_empty()).then_some((coords, uv_corners));
+    Ok(ObjFile { soup, uvs, objects })
 }
 
-/// Joins tobj's models (one per object or group, each with its own vertex list) into one
-/// soup; shared vertices end up duplicated and are welded later.
-fn concatenate(models: Vec<tobj::Model>, path: &Path) -> Result<Soup> {
-    let mut soup = Soup::default();
-    for model in models {
-        let m = model.mesh;
-        if m.positions.len() % 3 != 0 || m.indices.len() % 3 != 0 || !m.face_arities.is_empty() {
-            return Err(Error::format(
-                path,
-                format!("OBJ object '{}' did not triangulate cleanly", model.name),
-            ));
+impl ObjFile {
+    /// The soup [`parse`] gives: each object's vertices numbered in the order its faces
+    /// first use them (vertices no face uses are left out).
+    fn per_object(self, path: &Path) -> Result<Soup> {
+        let n = self.soup.positions.len();
+        let mut out = Soup {
+            positions: Vec::with_capacity(n),
+            triangles: Vec::with_capacity(self.soup.triangles.len()),
+        };
+        let mut starts = vec![0];
+        starts.extend(&self.objects);
+        starts.push(self.soup.triangles.len());
+        for range in starts.windows(2) {
+            let mut local: HashMap<i64, i64> = HashMap::new();
+            for (f, t) in self.soup.triangles[range[0]..range[1]].iter().enumerate() {
+                let mut corners = [0; 3];
+                for (corner, &i) in corners.iter_mut().zip(t) {
+                    if !usize::try_from(i).is_ok_and(|i| i < n) {
+                        return Err(Error::format(
+                            path,
+                            format!("face {} refers to vertex {i} (counting from 0), but the file has {n} vertices", range[0] + f),
+                        ));
+                    }
+                    *corner = *local.entry(i).or_insert_with(|| {
+                        out.positions.push(self.soup.positions[i as usize]);
+                        out.positions.len() as i64 - 1
+                    });
+                }
+                out.triangles.push(corners);
+            }
         }
-        let offset = soup.positions.len() as i64;
-        soup.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]].map(f64::from)));
-        soup.triangles
-            .extend(m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(|i| offset + i64::from(i))));
+        Ok(out)
     }
-    Ok(soup)
+}
+
+/// The first `N` numbers of an OBJ line (at least `required` of them; missing ones are 0),
+/// read as `f32`, the precision meshes are kept at.
+fn numbers<'a, const N: usize>(
+    words: impl Iterator<Item = &'a str>,
+    required: usize,
+) -> Result<[f32; N], String> {
+    let mut out = [0.0; N];
+    let mut count = 0;
+    for (k, w) in words.take(N).enumerate() {
+        out[k] = w.parse().map_err(|_| format!("'{w}' is not a number"))?;
+        count += 1;
+    }
+    if count < required {
+        return Err(format!("expected at least {required} numbers"));
+    }
+    Ok(out)
+}
+
+/// A 1-based OBJ index (negative: counting back from the `seen` items so far) as 0-based.
+fn index(word: &str, seen: usize) -> Result<i64, String> {
+    let i: i64 = word.parse().map_err(|_| format!("'{word}' is not an index"))?;
+    match i {
+        0 => Err("index 0 (OBJ counts from 1)".into()),
+        i if i > 0 => Ok(i - 1),
+        i => Ok(seen as i64 + i),
+    }
 }
 
 #[cfg(test)]
@@ -88,6 +157,19 @@ mod tests {
         assert_eq!(p.triangles.len(), 3);
     }
 
+    /// Per object, vertices are numbered as its faces first use them, and a vertex two
+    /// objects share is duplicated (welding joins it again).
+    #[test]
+    fn each_object_numbers_the_vertices_its_faces_use() {
+        let s = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\nv 1 1 0\no a\nf 3 1 2\ng b\nf 2 5 3\n")
+            .expect("parses");
+        assert_eq!(s.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        let p = |i: usize| s.positions[i];
+        assert_eq!([p(0), p(1), p(2)], [[0.0, 1.0, 0.0], [0.0; 3], [1.0, 0.0, 0.0]]);
+        assert_eq!([p(3), p(4), p(5)], [[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(s.positions.len(), 6, "the unused vertex is left out");
+    }
+
     #[test]
     fn relative_indices_and_vt_vn_parts_are_handled() {
         let s = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/99/7 -1//3\n").expect("parses");
@@ -97,7 +179,7 @@ mod tests {
     #[test]
     fn out_of_range_position_index_is_an_error() {
         let e = parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.obj: not a valid OBJ file"), "{e}");
+        assert!(e.starts_with("t.obj: face 0 refers to vertex 3"), "{e}");
         assert!(parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n").is_err());
         assert!(parse_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n").is_err());
     }
@@ -105,7 +187,7 @@ mod tests {
     #[test]
     fn empty_and_garbage_files_have_no_faces() {
         for text in ["", "hello world\n", "# only a comment\nv 1 2 3\n"] {
-            let soup = parse_str(text).expect("tobj accepts it");
+            let soup = parse_str(text).expect("parses: no face is no error yet");
             assert!(soup.triangles.is_empty());
         }
         let dir = tempfile::tempdir().expect("temp dir");

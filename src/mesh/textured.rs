@@ -54,139 +54,37 @@ pub fn load_textured(path: &Path) -> Result<TexturedMesh> {
     Ok(mesh)
 }
 
-/// Parses OBJ text: `v`, `vt` and `f` lines (corners `v`, `v/vt`, `v/vt/vn`, `v//vn`, with
-/// negative indices counting back from the line), everything else ignored. tobj, which
-/// [`super::obj`] uses, renumbers vertices and texture coordinates per object; export must
-/// keep the file's own arrays, so this reader takes them as written.
+/// Parses OBJ text with [`super::obj`]'s reader, keeping the file's own vertex and texture
+/// coordinate arrays as written (relative indices resolved, polygons fan-triangulated).
 pub fn read_obj(bytes: &[u8], path: &Path) -> Result<TexturedMesh> {
-    let text = String::from_utf8_lossy(bytes);
-    let mut soup = Soup::default();
-    let mut coords: Vec<Vec2> = Vec::new();
-    let mut uv_corners: Vec<[i64; 3]> = Vec::new();
-    let mut every_face_has_uvs = true;
-    for (n, line) in text.lines().enumerate() {
-        let bad = |m: String| Error::format(path, format!("line {}: {m}", n + 1));
-        let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => soup.positions.push(numbers::<3>(words, 3).map_err(bad)?),
-            Some("vt") => {
-                let [u, v] = numbers::<2>(words, 1).map_err(bad)?;
-                coords.push(Vec2::new(u as f32, v as f32));
-            }
-            Some("f") => {
-                let (mut polygon, mut uvs) = (Vec::new(), Vec::new());
-                for corner in words {
-                    let mut parts = corner.split('/');
-                    let v = parts.next().unwrap_or_default();
-                    polygon.push(obj_index(v, soup.positions.len()).map_err(bad)?);
-                    match parts.next().filter(|t| !t.is_empty()) {
-                        Some(t) => uvs.push(obj_index(t, coords.len()).map_err(bad)?),
-                        None => every_face_has_uvs = false,
-                    }
-                }
-                if polygon.len() < 3 {
-                    return Err(bad("a face needs at least three corners".into()));
-                }
-                Soup::fan_triangulate(&polygon, &mut soup.triangles);
-                Soup::fan_triangulate(&uvs, &mut uv_corners);
-            }
-            _ => {}
-        }
-    }
-    let uvs = (every_face_has_uvs && !coords.is_empty()).then(|| UvLayer {
+    let file = super::obj::read(bytes, path)?;
+    let uvs = file.uvs.map(|(coords, corners)| UvLayer {
         coords,
-        corners: uv_corners.iter().map(|t| t.map(|i| u32::try_from(i).unwrap_or(u32::MAX))).collect(),
+        corners: corners.iter().map(|t| t.map(|i| u32::try_from(i).unwrap_or(u32::MAX))).collect(),
     });
-    from_soup(soup, uvs, path)
+    from_soup(file.soup, uvs, path)
 }
-
-/// The first `N` numbers of an OBJ line (at least `required` of them; missing ones are 0).
-fn numbers<'a, const N: usize>(
-    words: impl Iterator<Item = &'a str>,
-    required: usize,
-) -> Result<[f64; N], String> {
-    let mut out = [0.0; N];
-    let mut count = 0;
-    for (k, w) in words.take(N).enumerate() {
-        out[k] = w.parse().map_err(|_| format!("'{w}' is not a number"))?;
-        count += 1;
-    }
-    if count < required {
-        return Err(format!("expected at least {required} numbers"));
-    }
-    Ok(out)
-}
-
-/// A 1-based OBJ index (negative: counting back from the `seen` items so far) as 0-based;
-/// out-of-range indices are left for [`from_soup`] to report.
-fn obj_index(word: &str, seen: usize) -> Result<i64, String> {
-    let i: i64 = word.parse().map_err(|_| format!("'{word}' is not an index"))?;
-    match i {
-        0 => Err("index 0 (OBJ counts from 1)".into()),
-        i if i > 0 => Ok(i - 1),
-        i => Ok(seen as i64 + i),
-    }
-}
-
-/// Names of per-vertex texture coordinate pairs, in order of preference.
-const VERTEX_UV_NAMES: [(&str, &str); 3] =
-    [("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t")];
 
 /// Parses a PLY file with per-vertex (`s t`, `texture_u texture_v`, `texture_s texture_t`)
-/// or per-corner (face list `texcoord`) texture coordinates.
+/// or per-corner (face list `texcoord`) texture coordinates, through
+/// [`super::ply::read`]'s one reading of its rows.
 pub fn read_ply(bytes: &[u8], path: &Path) -> Result<TexturedMesh> {
-    let mut soup = Soup::default();
-    let mut vertex_uvs: Vec<Vec2> = Vec::new();
-    let mut corner_uvs: Vec<Vec2> = Vec::new();
-    let mut corner_triangles: Vec<[i64; 3]> = Vec::new();
-    let mut corners_seen = 0i64;
-    super::ply::read::visit_rows(bytes, path, |element, _, row| {
-        let find = |name: &str| element.properties.iter().position(|p| p.name() == name);
-        let first = |k: usize| row[k].first().copied().unwrap_or(0.0);
-        match element.name.as_str() {
-            "vertex" => {
-                let [Some(x), Some(y), Some(z)] = ["x", "y", "z"].map(find) else {
-                    return Err("the PLY vertex element lacks x, y or z properties".into());
-                };
-                soup.positions.push([first(x), first(y), first(z)]);
-                if let Some((s, t)) = VERTEX_UV_NAMES.iter().find_map(|(s, t)| Some((find(s)?, find(t)?))) {
-                    vertex_uvs.push(Vec2::new(first(s) as f32, first(t) as f32));
-                }
-            }
-            "face" => {
-                let k = find("vertex_indices")
-                    .or_else(|| find("vertex_index"))
-                    .ok_or("the PLY face element lacks a vertex_indices list")?;
-                let polygon: Vec<i64> = row[k].iter().map(|&v| v as i64).collect();
-                Soup::fan_triangulate(&polygon, &mut soup.triangles);
-                if let Some(t) = find("texcoord") {
-                    if row[t].len() != 2 * polygon.len() {
-                        return Err("its texcoord list does not hold two values per corner".into());
-                    }
-                    corner_uvs.extend(row[t].chunks_exact(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)));
-                }
-                let corners: Vec<i64> = (corners_seen..corners_seen + polygon.len() as i64).collect();
-                Soup::fan_triangulate(&corners, &mut corner_triangles);
-                corners_seen += polygon.len() as i64;
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
+    let mesh = super::ply::read::read_mesh(bytes, path)?;
+    let uv = |c: &[f64; 2]| Vec2::new(c[0] as f32, c[1] as f32);
     // Per-corner coordinates count only if every face had them; else per-vertex ones.
-    let uvs = if !corner_uvs.is_empty() && corner_uvs.len() as i64 == corners_seen {
+    let uvs = if !mesh.corner_uvs.is_empty() && mesh.corner_uvs.len() == mesh.corners {
         Some(UvLayer {
-            coords: corner_uvs,
-            corners: corner_triangles.iter().map(|t| t.map(|i| i as u32)).collect(),
+            coords: mesh.corner_uvs.iter().map(uv).collect(),
+            corners: mesh.corner_triangles.iter().map(|t| t.map(|i| i as u32)).collect(),
         })
-    } else if !vertex_uvs.is_empty() && vertex_uvs.len() == soup.positions.len() {
+    } else if !mesh.vertex_uvs.is_empty() && mesh.vertex_uvs.len() == mesh.soup.positions.len() {
         let corners =
-            soup.triangles.iter().map(|t| t.map(|i| u32::try_from(i).unwrap_or(u32::MAX))).collect();
-        Some(UvLayer { coords: vertex_uvs, corners })
+            mesh.soup.triangles.iter().map(|t| t.map(|i| u32::try_from(i).unwrap_or(u32::MAX))).collect();
+        Some(UvLayer { coords: mesh.vertex_uvs.iter().map(uv).collect(), corners })
     } else {
         None
     };
-    from_soup(soup, uvs, path)
+    from_soup(mesh.soup, uvs, path)
 }
 
 /// Validates a parsed mesh: faces exist, coordinates are finite, indices in range.

@@ -1,28 +1,98 @@
-//! Reading PLY: the `vertex` element's `x`, `y`, `z` (any numeric type) and the `face`
-//! element's `vertex_indices` (or `vertex_index`) list; every other property and element is
-//! read by its declared type and discarded.
+//! Reading PLY: the `vertex` element's `x`, `y`, `z` (any numeric type) and texture
+//! coordinates, and the `face` element's `vertex_indices` (or `vertex_index`) list and
+//! `texcoord` list; every other property and element is read by its declared type and
+//! discarded.
 
 use super::{parse_header, Element, Encoding, Header, Property, Scalar};
 use crate::mesh::Soup;
 use crate::{Error, Result};
 use std::path::Path;
 
-/// Parses a PLY file's bytes.
+/// Parses a PLY file's bytes: positions and faces only.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Soup> {
-    let header = parse_header(bytes).map_err(|m| Error::format(path, m))?;
-    let body = bytes.get(header.body_offset..).unwrap_or_default();
-    let mut values = Values::new(body, header.encoding).map_err(|m| Error::format(path, m))?;
-    check_sizes(&header, body.len()).map_err(|m| Error::format(path, m))?;
-    let mut soup = Soup::default();
-    for element in &header.elements {
-        read_element(element, &mut values, &mut soup).map_err(|m| Error::format(path, m))?;
-    }
-    Ok(soup)
+    read_mesh(bytes, path).map(|mesh| mesh.soup)
+}
+
+/// A PLY mesh as [`read_mesh`] reads it: the one reading of `vertex` and `face` rows, for
+/// [`parse`] and for the reader that keeps texture coordinates.
+pub(crate) struct PlyMesh {
+    /// Positions and fan-triangulated faces.
+    pub soup: Soup,
+    /// Per vertex, its texture coordinates if its element has a pair of
+    /// [`VERTEX_UV_NAMES`].
+    pub vertex_uvs: Vec<[f64; 2]>,
+    /// Per face corner, in file order, its `texcoord` pair (faces without the list add none).
+    pub corner_uvs: Vec<[f64; 2]>,
+    /// Per triangle, its corners' indices among every face corner in file order.
+    pub corner_triangles: Vec<[i64; 3]>,
+    /// Face corners in the file.
+    pub corners: usize,
+}
+
+/// Names of per-vertex texture coordinate pairs, in order of preference.
+pub(crate) const VERTEX_UV_NAMES: [(&str, &str); 3] =
+    [("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t")];
+
+/// Reads a PLY file's `vertex` element's `x`, `y`, `z` (and texture coordinates, see
+/// [`PlyMesh`]) and its `face` element's `vertex_indices` (or `vertex_index`) list.
+pub(crate) fn read_mesh(bytes: &[u8], path: &Path) -> Result<PlyMesh> {
+    let mut mesh = PlyMesh {
+        soup: Soup::default(),
+        vertex_uvs: Vec::new(),
+        corner_uvs: Vec::new(),
+        corner_triangles: Vec::new(),
+        corners: 0,
+    };
+    let mut polygon = Vec::new();
+    visit_rows(bytes, path, |element, _, row| {
+        let find = |name: &str| element.properties.iter().position(|p| p.name() == name);
+        let first = |k: usize| row[k].first().copied().unwrap_or(0.0);
+        match element.name.as_str() {
+            "vertex" => {
+                let [Some(x), Some(y), Some(z)] = ["x", "y", "z"].map(|c| {
+                    element
+                        .properties
+                        .iter()
+                        .position(|p| matches!(p, Property::Scalar { name, .. } if name == c))
+                }) else {
+                    return Err("the PLY vertex element lacks scalar x, y or z properties".into());
+                };
+                mesh.soup.positions.push([first(x), first(y), first(z)]);
+                if let Some((s, t)) = VERTEX_UV_NAMES.iter().find_map(|(s, t)| Some((find(s)?, find(t)?))) {
+                    mesh.vertex_uvs.push([first(s), first(t)]);
+                }
+            }
+            "face" => {
+                let k = element
+                    .properties
+                    .iter()
+                    .position(|p| {
+                        matches!(p, Property::List { name, .. } if name == "vertex_indices" || name == "vertex_index")
+                    })
+                    .ok_or("the PLY face element lacks a vertex_indices list")?;
+                polygon.clear();
+                polygon.extend(row[k].iter().map(|&v| v as i64));
+                Soup::fan_triangulate(&polygon, &mut mesh.soup.triangles);
+                if let Some(t) = find("texcoord") {
+                    if row[t].len() != 2 * polygon.len() {
+                        return Err("its texcoord list does not hold two values per corner".into());
+                    }
+                    mesh.corner_uvs.extend(row[t].chunks_exact(2).map(|c| [c[0], c[1]]));
+                }
+                let start = mesh.corners as i64;
+                let corners: Vec<i64> = (start..start + polygon.len() as i64).collect();
+                Soup::fan_triangulate(&corners, &mut mesh.corner_triangles);
+                mesh.corners += polygon.len();
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    Ok(mesh)
 }
 
 /// Reads every row of every element and hands it to `visit` (the element, the row's index
-/// and one value list per property, scalars as one value): for readers of the properties
-/// [`parse`] discards, such as texture coordinates.
+/// and one value list per property, scalars as one value).
 pub(crate) fn visit_rows(
     bytes: &[u8],
     path: &Path,
@@ -33,7 +103,8 @@ pub(crate) fn visit_rows(
     let mut values = Values::new(body, header.encoding).map_err(|m| Error::format(path, m))?;
     check_sizes(&header, body.len()).map_err(|m| Error::format(path, m))?;
     let mut row = Vec::new();
-    for element in &header.elements {
+    // An element without properties takes no bytes, whatever its count claims.
+    for element in header.elements.iter().filter(|e| !e.properties.is_empty()) {
         for i in 0..element.count {
             let at = || format!("PLY {} {i} of {}", element.name, element.count);
             read_row(element, &mut values, &mut row)
@@ -57,53 +128,6 @@ fn check_sizes(header: &Header, body_len: usize) -> Result<(), String> {
         Some(n) if n <= body_len => Ok(()),
         _ => Err("the PLY header declares more data than the file holds".into()),
     }
-}
-
-fn read_element(element: &Element, values: &mut Values, soup: &mut Soup) -> Result<(), String> {
-    let at = |i: usize| format!("PLY {} {i} of {}", element.name, element.count);
-    match element.name.as_str() {
-        "vertex" => {
-            let xyz = ["x", "y", "z"].map(|c| {
-                element
-                    .properties
-                    .iter()
-                    .position(|p| matches!(p, Property::Scalar { name, .. } if name == c))
-            });
-            let [Some(x), Some(y), Some(z)] = xyz else {
-                return Err("the PLY vertex element lacks scalar x, y or z properties".into());
-            };
-            soup.positions.reserve(element.count);
-            let mut row = Vec::new();
-            for i in 0..element.count {
-                read_row(element, values, &mut row).map_err(|m| format!("{}: {m}", at(i)))?;
-                soup.positions.push([x, y, z].map(|k| row[k].first().copied().unwrap_or(0.0)));
-            }
-        }
-        "face" => {
-            let Some(k) = element.properties.iter().position(|p| {
-                matches!(p, Property::List { name, .. } if name == "vertex_indices" || name == "vertex_index")
-            }) else {
-                return Err("the PLY face element lacks a vertex_indices list".into());
-            };
-            let mut row = Vec::new();
-            let mut polygon = Vec::new();
-            for i in 0..element.count {
-                read_row(element, values, &mut row).map_err(|m| format!("{}: {m}", at(i)))?;
-                polygon.clear();
-                polygon.extend(row[k].iter().map(|&v| v as i64));
-                Soup::fan_triangulate(&polygon, &mut soup.triangles);
-            }
-        }
-        // An element without properties takes no bytes, whatever its count claims.
-        _ if element.properties.is_empty() => {}
-        _ => {
-            let mut row = Vec::new();
-            for i in 0..element.count {
-                read_row(element, values, &mut row).map_err(|m| format!("{}: {m}", at(i)))?;
-            }
-        }
-    }
-    Ok(())
 }
 
 /// Reads one instance of `element`: one value list per property (scalars as one value).
@@ -266,6 +290,12 @@ mod tests {
             property float x\nproperty float y\nproperty float z\nend_header\n";
         let e = parse_bytes(text.as_bytes()).unwrap_err().to_string();
         assert!(e.contains("more data than the file holds"), "{e}");
+    }
+
+    #[test]
+    fn an_element_without_properties_takes_no_time_whatever_its_count() {
+        let text = ASCII.replace("element edge 1", "element nothing 4000000000000\nelement edge 1");
+        assert_eq!(parse_bytes(text.as_bytes()).expect("parses").triangles.len(), 2);
     }
 
     #[test]
