@@ -35,14 +35,20 @@ fn symmetrize(mut m: Array2<f32>) -> Array2<f32> {
     m
 }
 
-/// ‖tᵢ − tⱼ‖² = Γᵢᵢ + Γⱼⱼ − 2Γᵢⱼ for every pair, row-major (n × n), clamped at 0 against
-/// rounding.
+/// The one texton distance of the crate: ‖tᵢ − tⱼ‖² = Γᵢᵢ + Γⱼⱼ − 2Γᵢⱼ from three entries
+/// of Γ, clamped at 0 against rounding.
+#[inline]
+pub fn texton_distance(ii: f32, jj: f32, ij: f32) -> f32 {
+    (ii + jj - 2.0 * ij).max(0.0)
+}
+
+/// [`texton_distance`] for every pair, row-major (n × n).
 pub fn distance_table(gamma: &Array2<f32>) -> Vec<f32> {
     let n = gamma.nrows();
     let mut table = vec![0.0; n * n];
     for i in 0..n {
         for j in 0..n {
-            table[i * n + j] = (gamma[[i, i]] + gamma[[j, j]] - 2.0 * gamma[[i, j]]).max(0.0);
+            table[i * n + j] = texton_distance(gamma[[i, i]], gamma[[j, j]], gamma[[i, j]]);
         }
     }
     table

@@ -106,7 +106,7 @@ impl Metric for GammaMetric<'_> {
     fn texel_distance(&self, a: [i32; 2], b: [i32; 2]) -> f32 {
         let s = self.sample;
         let (ta, tb) = (s.label_at(a[0] as i64, a[1] as i64), s.label_at(b[0] as i64, b[1] as i64));
-        (s.dot(ta, ta) + s.dot(tb, tb) - 2.0 * s.dot(ta, tb)).max(0.0)
+        s.texton_distance(ta, tb)
     }
 
     fn cost(&self, query: &Vec<Term>, x: i64, y: i64, bound: f32) -> f32 {

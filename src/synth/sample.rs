@@ -263,6 +263,12 @@ impl SampleLevel {
         self.gamma[a as usize * self.textons + b as usize]
     }
 
+    /// The distance ‖t_a − t_b‖² of two textons ([`crate::analysis::gamma::texton_distance`]).
+    #[inline]
+    pub fn texton_distance(&self, a: u16, b: u16) -> f32 {
+        crate::analysis::gamma::texton_distance(self.dot(a, a), self.dot(b, b), self.dot(a, b))
+    }
+
     /// The label at (x, y), wrapping on tileable samples and clamping otherwise.
     #[inline]
     pub fn label_at(&self, x: i64, y: i64) -> u16 {
