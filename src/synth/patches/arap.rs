@@ -31,7 +31,8 @@ pub(super) struct Faces {
 impl Faces {
     /// The faces `corners` over the vertices at 3D `positions`.
     pub(super) fn new(corners: &[[u32; 3]], positions: &[Vec3]) -> Faces {
-        let shape: Vec<[DVec2; 3]> = corners.iter().map(|t| flat_shape(t.map(|i| positions[i as usize]))).collect();
+        let shape: Vec<[DVec2; 3]> =
+            corners.iter().map(|t| flat_shape(t.map(|i| positions[i as usize]))).collect();
         let weight = shape.iter().map(cotangents).collect();
         Faces { corners: corners.to_vec(), shape, weight }
     }
@@ -146,7 +147,8 @@ fn solve(faces: &Faces, inverse_diagonal: &[f64], rhs: &[DVec2], u: &mut [DVec2]
     apply(faces, u, &mut r);
     r.iter_mut().zip(rhs).for_each(|(r, &b)| *r = b - *r);
     let norm = dot(rhs, rhs).max(f64::MIN_POSITIVE);
-    let precondition = |r: &[DVec2]| -> Vec<DVec2> { r.iter().zip(inverse_diagonal).map(|(&r, &d)| r * d).collect() };
+    let precondition =
+        |r: &[DVec2]| -> Vec<DVec2> { r.iter().zip(inverse_diagonal).map(|(&r, &d)| r * d).collect() };
     let mut z = precondition(&r);
     let mut p = z.clone();
     let mut rz = dot(&r, &z);
@@ -209,8 +211,10 @@ mod tests {
             }
         }
         // The start was far from isometric, so the flattening did the work.
-        let worst = t.iter().flat_map(|tri| (0..3).map(move |k| (tri[k] as usize, tri[(k + 1) % 3] as usize)));
-        let shortest = worst.map(|(a, b)| start[a].distance(start[b]) / p[a].distance(p[b])).fold(1f32, f32::min);
+        let worst =
+            t.iter().flat_map(|tri| (0..3).map(move |k| (tri[k] as usize, tri[(k + 1) % 3] as usize)));
+        let shortest =
+            worst.map(|(a, b)| start[a].distance(start[b]) / p[a].distance(p[b])).fold(1f32, f32::min);
         assert!(shortest < 0.6, "{shortest}");
     }
 }

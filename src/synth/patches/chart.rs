@@ -130,7 +130,8 @@ fn finished(graph: &SurfaceGraph, h: &Hierarchy, c: u32, recursive: Chart) -> Ch
     let with = |start: &[Vec2]| {
         let flat = arap::flatten(&faces, start);
         let vertices = recursive.vertices.iter().zip(flat).map(|(&(v, _), p)| (v, p)).collect();
-        Chart { vertices, corners: recursive.corners.clone(), flat_error: 0.0, folds: 0 }.measured(graph, h, c)
+        Chart { vertices, corners: recursive.corners.clone(), flat_error: 0.0, folds: 0 }
+            .measured(graph, h, c)
     };
     let start: Vec<Vec2> = recursive.vertices.iter().map(|&(_, p)| p).collect();
     let mut best = recursive.clone();
