@@ -18,6 +18,7 @@
 //! polygon moves every vertex the same way: [`Chart`] is computed once per cluster and
 //! placed with an affine map.
 
+use super::arap;
 use super::graph::{SurfaceGraph, NONE};
 use super::hierarchy::Hierarchy;
 use glam::{DVec2, Vec2, Vec3};
@@ -108,12 +109,53 @@ impl Flattening {
         let index = |v: u32| vertices.binary_search_by_key(&v, |&(w, _)| w).map(|i| i as u32);
         let cluster = &h.clusters[c as usize];
         let mut corners = Vec::with_capacity(cluster.faces.len());
-        let (mut surface, mut flat, mut folds) = (0f64, 0f64, 0usize);
         for &f in &cluster.faces {
-            let t = graph.corners[f as usize];
-            let [Ok(a), Ok(b), Ok(d)] = t.map(index) else { return None };
+            let [Ok(a), Ok(b), Ok(d)] = graph.corners[f as usize].map(index) else { return None };
             corners.push([a, b, d]);
-            let [pa, pb, pd] = [a, b, d].map(|i| vertices[i as usize].1);
+        }
+        let recursive = Chart { vertices, corners, flat_error: 0.0, folds: 0 }.measured(graph, h, c);
+        if cluster.is_face() || (recursive.folds == 0 && recursive.flat_error < 1e-4) {
+            return Some(recursive);
+        }
+        Some(finished(graph, h, c, recursive))
+    }
+}
+
+/// The recursive chart `recursive` of cluster `c` flattened near-isometrically
+/// ([`super::arap`]), kept if it has no more folds and no larger area error; where it still
+/// folds, the same started from the faces unfolded one by one across their edges.
+fn finished(graph: &SurfaceGraph, h: &Hierarchy, c: u32, recursive: Chart) -> Chart {
+    let positions: Vec<Vec3> = recursive.vertices.iter().map(|&(v, _)| graph.positions[v as usize]).collect();
+    let faces = arap::Faces::new(&recursive.corners, &positions);
+    let with = |start: &[Vec2]| {
+        let flat = arap::flatten(&faces, start);
+        let vertices = recursive.vertices.iter().zip(flat).map(|(&(v, _), p)| (v, p)).collect();
+        Chart { vertices, corners: recursive.corners.clone(), flat_error: 0.0, folds: 0 }
+            .measured(graph, h, c)
+    };
+    let start: Vec<Vec2> = recursive.vertices.iter().map(|&(_, p)| p).collect();
+    let mut best = recursive.clone();
+    let mut candidates = vec![with(&start)];
+    if candidates[0].folds > 0 {
+        candidates.push(with(&unfolded(&recursive.corners, &positions)));
+    }
+    for candidate in candidates {
+        if (candidate.folds, candidate.flat_error) <= (best.folds, best.flat_error)
+            || candidate.folds < best.folds
+        {
+            best = candidate;
+        }
+    }
+    best
+}
+
+impl Chart {
+    /// This chart with its flattening error and folds measured on cluster `c`.
+    fn measured(mut self, graph: &SurfaceGraph, h: &Hierarchy, c: u32) -> Chart {
+        let cluster = &h.clusters[c as usize];
+        let (mut surface, mut flat, mut folds) = (0f64, 0f64, 0usize);
+        for (&f, t) in cluster.faces.iter().zip(&self.corners) {
+            let [pa, pb, pd] = t.map(|i| self.vertices[i as usize].1);
             let signed = 0.5 * (pb - pa).perp_dot(pd - pa);
             let area = graph.area[f as usize];
             surface += f64::from(area);
@@ -122,9 +164,60 @@ impl Flattening {
                 folds += 1;
             }
         }
-        let flat_error = if flat > 0.0 { (surface / flat - 1.0).abs() as f32 } else { f32::INFINITY };
-        Some(Chart { vertices, corners, flat_error, folds })
+        self.flat_error = if flat > 0.0 { (surface / flat - 1.0).abs() as f32 } else { f32::INFINITY };
+        self.folds = folds;
+        self
     }
+}
+
+/// Positions of the vertices of `corners` (3D `positions`) laid out by unfolding the faces
+/// one by one across their edges, breadth first from the first face: every face that is
+/// reached first through an edge keeps its exact shape, whatever the recursion gave.
+fn unfolded(corners: &[[u32; 3]], positions: &[Vec3]) -> Vec<Vec2> {
+    let mut at: Vec<Option<Vec2>> = vec![None; positions.len()];
+    let mut faces_of: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (f, t) in corners.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+            faces_of.entry((a, b)).or_default().push(f);
+        }
+    }
+    let length = |a: u32, b: u32| positions[a as usize].distance(positions[b as usize]);
+    let mut done = vec![false; corners.len()];
+    let mut queue = std::collections::VecDeque::new();
+    for first in 0..corners.len() {
+        if done[first] {
+            continue;
+        }
+        let [a, b, _] = corners[first];
+        if at[a as usize].is_none() {
+            at[a as usize] = Some(Vec2::ZERO);
+        }
+        if at[b as usize].is_none() {
+            at[b as usize] = Some(at[a as usize].unwrap_or(Vec2::ZERO) + Vec2::new(length(a, b), 0.0));
+        }
+        done[first] = true;
+        queue.push_back(first);
+        while let Some(f) = queue.pop_front() {
+            let t = corners[f];
+            for k in 0..3 {
+                let (a, b, apex) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                if let (Some(pa), Some(pb), None) = (at[a as usize], at[b as usize], at[apex as usize]) {
+                    at[apex as usize] = Some(unfold(pa, pb, length(a, apex), length(b, apex)));
+                }
+            }
+            for k in 0..3 {
+                let key = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                for &g in &faces_of[&key] {
+                    if !done[g] {
+                        done[g] = true;
+                        queue.push_back(g);
+                    }
+                }
+            }
+        }
+    }
+    at.into_iter().map(|p| p.unwrap_or(Vec2::ZERO)).collect()
 }
 
 /// A plane frame: unit axes and an origin.
@@ -405,6 +498,28 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// On a curved mesh, the clusters of every level from the second down flatten without
+    /// folds and within the default 10% of area error, four in five at least (14 of level 2's
+    /// 16: two of about 230 faces still fold). The recursive coordinates alone did not:
+    /// level 2's median error was 0.42, level 3's ninetieth percentile 0.49, with 11 of its
+    /// 66 clusters folded.
+    #[test]
+    fn bunny_clusters_flatten_nearly_isometrically_on_every_level_below_the_first() {
+        let path = crate::mesh::test_meshes::bundled("bunny-1k8.obj");
+        let mesh = crate::mesh::textured::load_textured(&path).expect("bunny");
+        let g = SurfaceGraph::new(&mesh.positions, &mesh.triangles, &path).expect("manifold");
+        let h = Hierarchy::build(&g, &mut ChaCha8Rng::seed_from_u64(0));
+        let flattening = Flattening::new(&g, &h);
+        for (l, level) in h.levels.iter().enumerate().skip(2) {
+            let flat = level
+                .iter()
+                .filter_map(|&c| flattening.chart(&g, &h, c))
+                .filter(|chart| chart.folds == 0 && chart.flat_error <= 0.1)
+                .count();
+            assert!(flat * 5 >= level.len() * 4, "level {l}: {flat} of {} flatten within 10%", level.len());
         }
     }
 

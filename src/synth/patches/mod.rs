@@ -7,7 +7,8 @@
 //! - [`graph`]: the file's triangles joined where their corners coincide; non-manifold
 //!   input is refused.
 //! - [`hierarchy`]: the face-cluster hierarchy (§3.1), discs down to single faces.
-//! - [`chart`]: control polygons and recursive barycentric coordinates (§3.2, Eq. 1).
+//! - [`chart`]: control polygons and recursive barycentric coordinates (§3.2, Eq. 1),
+//!   finished by a near-isometric flattening of each cluster's faces (`arap`).
 //! - [`fit`]: mask fitting by FFT correlation over rotations of the sample (§4.2).
 //! - [`mapping`]: the coarse-to-fine priority queue (§2.2) and the masks (§4.1);
 //!   [`relax`]: the relaxation along borders (§4.4).
@@ -30,6 +31,7 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+mod arap;
 pub mod chart;
 pub mod fit;
 pub mod graph;

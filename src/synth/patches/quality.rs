@@ -475,10 +475,11 @@ mod tests {
 
     /// A real photograph on the bunny: matching each patch to its neighbours leaves seams
     /// far fainter than placing the patches at random, both as the jump across the borders
-    /// ([`border_discontinuity`]: 0.30 against 0.82) and as the windows' patch energy across
-    /// borders against inside patches (ratio 1.32 against 2.09), and not far above the
-    /// patches' own distortion. (Before the windows unfolded their neighbours on the right
-    /// side of each edge the ratio was 1.90 against 1.89: it measured a scramble.)
+    /// ([`border_discontinuity`]: 0.29 against 0.82) and as the windows' patch energy across
+    /// borders against inside patches (ratio 1.30 against 1.93; the target is 1.5),
+    /// and not far above the patches' own distortion. (Before the windows unfolded their
+    /// neighbours on the right side of each edge the ratio was 1.90 against 1.89: it
+    /// measured a scramble.)
     #[test]
     fn matched_seams_on_a_photograph_are_fainter_than_random_ones() {
         let test = "matched_seams_on_a_photograph_are_fainter_than_random_ones";
@@ -535,5 +536,6 @@ mod tests {
         assert!(matched.border < 3.0 * matched.interior, "{matched:?}");
         let ratio = |q: &SeamQuality| q.border / q.interior;
         assert!(ratio(&matched) < 0.8 * ratio(&random), "matched {matched:?} random {random:?}");
+        assert!(ratio(&matched) <= 1.5, "the issue's target: {matched:?}");
     }
 }
