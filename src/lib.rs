@@ -46,4 +46,4 @@ pub mod synth;
 #[doc(hidden)]
 pub mod testdata;
 
-pub use error::{Error, Result};
+pub use error::{Error, Param, Remedy, Result};

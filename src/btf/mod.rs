@@ -28,7 +28,7 @@ pub use write::{write_images, write_stack, ImageFormat};
 use crate::{Error, Result};
 use half::f16;
 
-/// A rectangle of the sample, in pixels: `--crop x,y,w,h`.
+/// A rectangle of the sample, in pixels: origin `x, y`, size `w × h`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
     pub x: u32,
