@@ -42,6 +42,7 @@ pub mod mesh;
 pub mod progress;
 pub mod render;
 pub mod seeded;
+pub mod sentinel;
 pub mod synth;
 #[doc(hidden)]
 pub mod testdata;
