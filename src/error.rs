@@ -408,7 +408,10 @@ mod tests {
         assert_eq!(e.to_string(), "/data/tl\\n15.png: cannot read 'tl\\n15'");
         let e = Error::out_of_range(Param::Mesh, "/data/a\nb.obj", "no such file");
         assert_eq!(e.to_string(), "mesh /data/a\\nb.obj: no such file");
-        assert_eq!(Error::OutputExists("o\r".into()).to_string(), "o\\r already exists (allow overwriting to replace it)");
+        assert_eq!(
+            Error::OutputExists("o\r".into()).to_string(),
+            "o\\r already exists (allow overwriting to replace it)"
+        );
     }
 
     /// A vocabulary that shows which of its names a message used.
@@ -431,15 +434,24 @@ mod tests {
             message: "the coarsest level would be 3x3 pixels".into(),
             remedy: Some(Remedy::FewerLevels(2)),
         };
-        assert_eq!(levels.to_string(), "levels 5: the coarsest level would be 3x3 pixels; use 2 levels or fewer");
-        assert_eq!(levels.describe(&Marked), "<levels=5>: the coarsest level would be 3x3 pixels; <FewerLevels(2)>");
+        assert_eq!(
+            levels.to_string(),
+            "levels 5: the coarsest level would be 3x3 pixels; use 2 levels or fewer"
+        );
+        assert_eq!(
+            levels.describe(&Marked),
+            "<levels=5>: the coarsest level would be 3x3 pixels; <FewerLevels(2)>"
+        );
         let search = Error::IncompatibleSearch { preset: "chen2008".into() };
         assert_eq!(
             search.describe(&Marked),
             "<search=full>: preset 'chen2008' takes its candidates around the linked texels (k-coherence) only; <KCoherenceSearch>"
         );
         let big = Error::too_large("a.btf: decoding it would take 9 GiB", Remedy::Crop);
-        assert_eq!(big.to_string(), "a.btf: decoding it would take 9 GiB; decode a part of the stack (a crop)");
+        assert_eq!(
+            big.to_string(),
+            "a.btf: decoding it would take 9 GiB; decode a part of the stack (a crop)"
+        );
         assert_eq!(Error::OutputExists("out".into()).describe(&Marked), "out already exists (<Overwrite>)");
     }
 

@@ -158,12 +158,17 @@ mod tests {
             message: "the coarsest level would be 3x3 pixels".into(),
             remedy: Some(Remedy::FewerLevels(2)),
         };
-        assert_eq!(text(&levels), "--levels 5: the coarsest level would be 3x3 pixels; use --levels 2 or fewer");
+        assert_eq!(
+            text(&levels),
+            "--levels 5: the coarsest level would be 3x3 pixels; use --levels 2 or fewer"
+        );
         let exists = Error::OutputExists("out.ply".into());
         assert_eq!(text(&exists), "out.ply already exists (pass --force to replace it)");
         let search = Error::IncompatibleSearch { preset: "chen2008".into() };
         let line = text(&search);
-        assert!(line.starts_with("--search full: preset 'chen2008'") && line.ends_with("use --search kcoherence"));
+        assert!(
+            line.starts_with("--search full: preset 'chen2008'") && line.ends_with("use --search kcoherence")
+        );
         let other = std::io::Error::other("plain");
         assert_eq!(text(&other), "plain");
     }

@@ -141,7 +141,10 @@ pub fn export(
     let material = Material::open(&analysis_dir)?;
     let light = options.light.filter(|_| material.len() > 1);
     if options.light.is_some() && light.is_none() {
-        tracing::warn!("{}: a one-image BTF has one light; the light direction is ignored", analysis_dir.display());
+        tracing::warn!(
+            "{}: a one-image BTF has one light; the light direction is ignored",
+            analysis_dir.display()
+        );
     }
     let look = Look { scene: &scene, material: &material, blend: bake_blend(&material, light), light };
     let name = stem(output);
@@ -476,10 +479,12 @@ pub fn original_mesh(surface: &Path, given: Option<&Path>) -> Result<PathBuf> {
     let comments = surface_comments(surface)?;
     let field =
         |key: &str| comments.iter().find_map(|c| c.strip_prefix(key)).map(|v| PathBuf::from(v.trim()));
-    let written = field("mesh ")
-        .ok_or_else(|| {
-            Error::unavailable(format!("{}: no 'mesh' comment in the header", surface.display()), Remedy::GiveMesh)
-        })?;
+    let written = field("mesh ").ok_or_else(|| {
+        Error::unavailable(
+            format!("{}: no 'mesh' comment in the header", surface.display()),
+            Remedy::GiveMesh,
+        )
+    })?;
     let beside = surface.parent().map(|dir| dir.join(&written));
     let candidates = [Some(written.clone()), beside, field("mesh_absolute ")];
     candidates.into_iter().flatten().find(|p| p.is_file()).ok_or_else(|| {

@@ -36,9 +36,10 @@ pub struct Scene {
     pub labels: Vec<u16>,
     /// One sample texel in model units.
     pub texel: f32,
-    /// A texture-mapped mesh (pattern mapping, [`crate::synth::patches`]): vertices split at texture seams,
-    /// and pixel mode interpolates the corners' sample coordinates across each triangle, as
-    /// a rasteriser does, instead of letting each corner predict from its tangent frame.
+    /// A texture-mapped mesh (pattern mapping, [`crate::synth::patches`]): vertices split at
+    /// texture seams, and pixel mode interpolates the corners' sample coordinates across each
+    /// triangle, as a rasteriser does, instead of letting each corner predict from its tangent
+    /// frame.
     pub mapped: bool,
 }
 

@@ -221,11 +221,9 @@ impl App {
         let attributes = Window::default_attributes()
             .with_title("btfsynth view")
             .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
-        let window = Arc::new(
-            event_loop
-                .create_window(attributes)
-                .map_err(|e| Error::unavailable(format!("cannot open a window ({e})"), crate::Remedy::Headless))?,
-        );
+        let window = Arc::new(event_loop.create_window(attributes).map_err(|e| {
+            Error::unavailable(format!("cannot open a window ({e})"), crate::Remedy::Headless)
+        })?);
         let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
             event_loop.owned_display_handle(),
         ));

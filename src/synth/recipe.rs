@@ -55,8 +55,8 @@ pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum Stencil {
-    /// The square template of Tong, Turk and Wei–Levoy: `SynthParams::neighborhood` texels a side
-    /// (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
+    /// The square template of Tong, Turk and Wei–Levoy: `SynthParams::neighborhood` texels a
+    /// side (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
     /// whole square, `Visited` the causal part, `Half` Turk's half square, `Off` none of it.
     /// Matched by the `Gamma`, `Appearance` and `Colour` metrics. A recipe that names no
     /// stencil (one recorded before the field existed) means this one.
@@ -326,8 +326,8 @@ impl Preset {
     /// coordinate form of copying the four Laplacian children (Algorithm 2) and adding them
     /// to the projected coarser level.
     ///
-    /// Departures (docs/castellanos.md): the square template of `SynthParams::neighborhood` in place of
-    /// the triangular 2-distant stencil, without the paper's proximity weights and three
+    /// Departures (docs/castellanos.md): the square template of `SynthParams::neighborhood`
+    /// in place of the triangular 2-distant stencil, without the paper's proximity weights and three
     /// rotations; the exhaustive search on the coarsest level only, k-coherence candidates on
     /// the finer ones (the paper's exhaustive search there needs its kd-trees, §6); the
     /// inversion's blend across seams is not formed (a vertex starts from its inherited

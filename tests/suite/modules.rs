@@ -177,9 +177,9 @@ fn flag_names(files: &BTreeMap<String, String>) -> Vec<String> {
     for (file, text) in files.iter().filter(|(f, _)| !f.starts_with("cli/") && *f != "main.rs") {
         for (n, line) in text.lines().enumerate() {
             let attribute = ["#[arg(", "#[command("].iter().any(|a| line.trim_start().starts_with(a));
-            let flag = line.match_indices("--").any(|(at, _)| {
-                line[at + 2..].chars().next().is_some_and(|c| c.is_ascii_lowercase())
-            });
+            let flag = line
+                .match_indices("--")
+                .any(|(at, _)| line[at + 2..].chars().next().is_some_and(|c| c.is_ascii_lowercase()));
             if flag && !attribute {
                 found.push(format!("{file}:{}: {}", n + 1, line.trim()));
             }
@@ -204,5 +204,8 @@ fn the_flag_check_sees_flags_in_messages_and_comments_but_not_in_the_cli() {
     .iter()
     .map(|(f, t)| (f.to_string(), t.to_string()))
     .collect();
-    assert_eq!(flag_names(&files), ["a.rs:1: // lower --scale", "b.rs:1: Err(Error::invalid(\"use --crop\"))"]);
+    assert_eq!(
+        flag_names(&files),
+        ["a.rs:1: // lower --scale", "b.rs:1: Err(Error::invalid(\"use --crop\"))"]
+    );
 }

@@ -107,7 +107,9 @@ mod tests {
         assert!(matches!(refused, Error::TooLarge { remedy: Remedy::UploadFactors, .. }), "{refused:?}");
         let message = refused.to_string();
         assert!(message.contains("3.0 GiB of GPU memory (sample images as an atlas: 3.0 GiB)"), "{message}");
-        assert!(message.contains("1.0 GiB limit (x); upload the sample's factors") && !message.contains('\n'));
+        assert!(
+            message.contains("1.0 GiB limit (x); upload the sample's factors") && !message.contains('\n')
+        );
     }
 
     #[test]

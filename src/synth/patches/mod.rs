@@ -203,7 +203,12 @@ pub fn map_mesh(
             return Err(Error::out_of_range(
                 crate::Param::FirstFace,
                 f,
-                format!("{} has {} faces (0 to {})", path.display(), triangles.len(), triangles.len().saturating_sub(1)),
+                format!(
+                    "{} has {} faces (0 to {})",
+                    path.display(),
+                    triangles.len(),
+                    triangles.len().saturating_sub(1)
+                ),
             ))
         }
         Some(f) if graph.graph_face[f] == NONE => {
