@@ -187,8 +187,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         return soler2002(&args, &analysis, (staged_output, staged_report), bars);
     }
     let orientation = match &args.mesh {
+        // A bad value is a usage error; a constraints file that cannot be read is not.
         Some(_) => Some(Orientation::parse(&args.orient).map_err(|e| match e {
-            btfsynth::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
+            btfsynth::Error::OutOfRange { .. } => usage_of(e),
             other => other.into(),
         })?),
         None => None,
