@@ -202,7 +202,7 @@ fn special_kind(path: &Path) -> Option<&'static str> {
     }
 }
 
-/// Why nothing can be written at `path` whatever `--force` says: a block device or a
+/// Why nothing can be written at `path` even when overwriting is allowed: a block device or a
 /// socket (a disk must never be overwritten by an output).
 fn unwritable_kind(path: &Path) -> Option<&'static str> {
     use std::os::unix::fs::FileTypeExt;
@@ -231,10 +231,7 @@ pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
         return Ok(());
     }
     if std::fs::symlink_metadata(target).is_ok() && !overwrite {
-        return Err(Error::invalid(format!(
-            "{} already exists (pass --force to replace it)",
-            target.display()
-        )));
+        return Err(Error::OutputExists(target.to_path_buf()));
     }
     probe_parent(target)
 }
@@ -285,7 +282,7 @@ fn probe_parent(target: &Path) -> Result<()> {
 /// Refuses an output that is one of `inputs`, holds one (replacing it would delete the
 /// input) or lies inside one (writing it would change the input). Paths are compared
 /// resolved, so `./a`, `a/` and a link to `a` are all `a`. `what` names the output in the
-/// message (`-o`, `--report`).
+/// message (the front end's name for it: the output, the report).
 pub fn check_not_input(what: &str, output: &Path, inputs: &[&Path]) -> Result<()> {
     for input in inputs {
         if let Some(why) = overlap(output, input) {
@@ -299,8 +296,8 @@ pub fn check_not_input(what: &str, output: &Path, inputs: &[&Path]) -> Result<()
     Ok(())
 }
 
-/// Refuses a second output (`what`, e.g. `--report`) that is, holds or lies inside the
-/// first (`-o`): one would overwrite the other.
+/// Refuses a second output (`what`, e.g. a report) that is, holds or lies inside the
+/// first: one would overwrite the other.
 pub fn check_apart(what: &str, second: &Path, first: &Path) -> Result<()> {
     match overlap(second, first) {
         Some(why) => Err(Error::invalid(format!(

@@ -66,8 +66,9 @@ pub mod mesh;
 pub mod progress;
 pub mod render;
 pub mod seeded;
+pub mod sentinel;
 pub mod synth;
 #[doc(hidden)]
 pub mod testdata;
 
-pub use error::{Error, Result};
+pub use error::{Error, Param, Remedy, Result};

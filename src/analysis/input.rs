@@ -1,7 +1,7 @@
 //! What `analyze` reads, and which way it is analysed.
 //!
 //! - **Decoded images** ([`super::pipeline::analyze`]): image folders, manifests and
-//!   photographs that fit in memory decoded, and any stack with `--decoded`. This is the
+//!   photographs that fit in memory decoded, and any stack opened to be decoded. This is the
 //!   path the analysis goldens pin; memory grows with images × texels.
 //! - **The file's factors** ([`factor_basis`]): a DFMF or FMF `.btf` whose decoding is
 //!   linear in its factors — colour model RGB, YUV, PCA or YCoCg, no dynamic-range
@@ -32,7 +32,7 @@ use crate::btf::factored::FactoredStack;
 use crate::btf::source::{resolve_crop, ImageSource};
 use crate::btf::{archive, ubo2014, Btf, Crop};
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 use ndarray::{Array1, Array2};
 use std::path::{Path, PathBuf};
 
@@ -144,7 +144,7 @@ pub fn open(
                 size.1,
                 if linear { "" } else { " (through a streamed basis)" }
             );
-            memory::check(path, &what, &stages, "analyse a part with --crop x,y,w,h")?;
+            memory::check(path, &what, &stages, Remedy::Crop)?;
             return Ok(Input::Factors(file.into_window(crop)?.into_factored()?));
         }
         return decoded_or_streamed(Box::new(file.into_window(crop)?), mode, params, progress);
@@ -165,7 +165,7 @@ fn decoded_or_streamed(
     let (n, size) = (source.pairs().len(), (source.width(), source.height()));
     let decoded = memory::decoded_stages(n, size, params);
     let what = format!("analysing {}x{} texels × {n} decoded images", size.0, size.1);
-    let fits = memory::check(source.path(), &what, &decoded, "analyse a part with --crop x,y,w,h");
+    let fits = memory::check(source.path(), &what, &decoded, Remedy::Crop);
     match (fits, mode) {
         (Ok(()), _) => Ok(Input::Images(source.decode_all(progress)?)),
         (Err(e), Mode::Decoded) => Err(e),
@@ -174,7 +174,7 @@ fn decoded_or_streamed(
             let stages = memory::low_rank_stages(n, options.rank, size, params, 0, Some(options));
             let what =
                 format!("analysing {}x{} texels × {n} images through a streamed basis", size.0, size.1);
-            memory::check(source.path(), &what, &stages, "analyse a part with --crop x,y,w,h")?;
+            memory::check(source.path(), &what, &stages, Remedy::Crop)?;
             Ok(Input::Streamed(source))
         }
     }

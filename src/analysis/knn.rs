@@ -17,6 +17,7 @@
 //! - Two-level neighbourhoods (for the second synthesis pass) append the parent pixel's
 //!   neighbourhood on the coarser level, of size [`parent_size`].
 
+use crate::sentinel::OUTSIDE;
 use rayon::prelude::*;
 use std::collections::BinaryHeap;
 
@@ -24,8 +25,6 @@ use std::collections::BinaryHeap;
 pub const EXHAUSTIVE_LIMIT: usize = 64 * 64;
 /// Coarse candidates per pixel in the two-level search (the paper's m).
 pub const COARSE_CANDIDATES: usize = 100;
-/// Marks a neighbourhood slot outside a non-tileable sample.
-const OUTSIDE: u32 = u32::MAX;
 
 /// A texton label per pixel, row-major.
 #[derive(Clone, Debug, PartialEq)]

@@ -10,7 +10,7 @@
 
 use super::pipeline::AnalysisParams;
 use super::pyramid::level_sizes;
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 use std::path::Path;
 
 /// One stage's predicted peak.
@@ -38,28 +38,29 @@ pub fn peak(stages: &[Stage]) -> Option<&Stage> {
 
 /// Fails, naming `path`, the stage and the estimate, when the largest stage of `stages`
 /// would not fit in the budget; `what` says what was to be done ("analysing 400x400
-/// texels × 22801 images from the file's factors"), `advice` what to do instead.
-pub fn check(path: &Path, what: &str, stages: &[Stage], advice: &str) -> Result<()> {
+/// texels × 22801 images from the file's factors"), `remedy` what to do instead.
+pub fn check(path: &Path, what: &str, stages: &[Stage], remedy: Remedy) -> Result<()> {
     let Some(stage) = peak(stages) else { return Ok(()) };
-    check_against(path, what, stage, advice, budget()?)
+    check_against(path, what, stage, remedy, budget()?)
 }
 
 fn check_against(
     path: &Path,
     what: &str,
     stage: &Stage,
-    advice: &str,
+    remedy: Remedy,
     budget: Option<(u64, String)>,
 ) -> Result<()> {
     match budget {
-        Some((limit, source)) if stage.bytes > limit => Err(Error::format(
-            path,
+        Some((limit, source)) if stage.bytes > limit => Err(Error::too_large(
             format!(
-                "{what} would need about {} at its peak ({}), more than the {} budget ({source}); {advice}",
+                "{}: {what} would need about {} at its peak ({}), more than the {} budget ({source})",
+                path.display(),
                 gib(stage.bytes),
                 stage.name,
                 gib(limit)
             ),
+            remedy,
         )),
         _ => Ok(()),
     }
@@ -179,7 +180,7 @@ mod tests {
         let stage = peak(&stages).unwrap();
         assert!(stage.bytes > 1 << 50, "{stage:?}");
         let budget = Some((6u64 << 30, "BTFSYNTH_MEMORY=6G".to_string()));
-        let e = check_against(Path::new("huge.btf"), "analysing it", stage, "use --crop", budget)
+        let e = check_against(Path::new("huge.btf"), "analysing it", stage, Remedy::Crop, budget)
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("huge.btf: analysing it would need about"), "{e}");
@@ -216,13 +217,14 @@ mod tests {
 
     #[test]
     fn an_analysis_beyond_the_budget_is_refused_naming_the_stack() {
-        let (path, advice) = (Path::new("big.btf"), "analyse a part with --crop x,y,w,h");
+        let (path, advice) = (Path::new("big.btf"), Remedy::Crop);
         let budget = || Some((8u64 << 30, "80% of the 10.0 GiB available".to_string()));
         let stage = |bytes: u64| Stage { name: "textons of level 0 (400x400)".into(), bytes };
-        let e =
-            check_against(path, "analysing it", &stage(20 << 30), advice, budget()).unwrap_err().to_string();
-        assert!(e.contains("big.btf") && e.contains("20.0 GiB") && e.contains("--crop"), "{e}");
-        assert!(check_against(path, "analysing it", &stage(4 << 30), advice, budget()).is_ok());
+        let e = check_against(path, "analysing it", &stage(20 << 30), advice.clone(), budget()).unwrap_err();
+        assert!(matches!(e, Error::TooLarge { remedy: Remedy::Crop, .. }), "{e:?}");
+        let e = e.to_string();
+        assert!(e.contains("big.btf") && e.contains("20.0 GiB") && e.ends_with("(a crop)"), "{e}");
+        assert!(check_against(path, "analysing it", &stage(4 << 30), advice.clone(), budget()).is_ok());
         let no_figure = check_against(path, "analysing it", &stage(u64::MAX), advice, None);
         assert!(no_figure.is_ok(), "no figure from the platform: no refusal");
     }

@@ -33,8 +33,9 @@ pub use convolve::{convolve_bank, BankConvolver, Padding};
 pub use filters::{Filter, FilterBank, FilterKind, FilterSpec, Rgb8Image};
 pub use kmeans::{assign, kmeans, Assignment, Clustering, KMeansOptions};
 
-/// Timings of the two hot paths, measured, never asserted (DESIGN: benchmarks). Run with
-/// `cargo test --release --lib analysis::bench -- --ignored --nocapture`.
+/// Timings of the two hot paths, measured, never asserted (DESIGN: benchmarks). Run them
+/// in a release build as ignored tests, with their output shown (the test harness'
+/// `ignored` and `nocapture` options), filtered to `analysis::bench`.
 #[cfg(test)]
 mod bench {
     use super::*;
@@ -57,7 +58,7 @@ mod bench {
     }
 
     #[test]
-    #[ignore = "benchmark: run in release with --ignored --nocapture"]
+    #[ignore = "benchmark: run in release, as an ignored test, with its output shown"]
     fn bench_filtering_and_kmeans() {
         let threads = rayon::current_num_threads();
         let mut rng = ChaCha8Rng::seed_from_u64(1);

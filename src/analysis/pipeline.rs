@@ -10,7 +10,7 @@ use super::select::{representatives, representatives_from_basis, selection_basis
 use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
 use crate::btf::Btf;
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Param, Remedy, Result};
 use ndarray::Array2;
 use std::time::{Duration, Instant};
 
@@ -91,26 +91,24 @@ pub struct Analysis {
 }
 
 impl AnalysisParams {
-    /// Checks every parameter against the sample size; messages name the flag.
+    /// Checks every parameter against the sample size; errors name the [`Param`] at fault.
     pub fn validate(&self, width: usize, height: usize) -> Result<()> {
         let positive = [
-            ("--textons", self.textons),
-            ("--selected", self.selected),
-            ("--levels", self.levels),
-            ("--k", self.k),
-            ("--basis", self.basis_rank),
-            ("--appearance-dims", self.appearance_dims),
+            (Param::Textons, self.textons),
+            (Param::SelectedImages, self.selected),
+            (Param::Levels, self.levels),
+            (Param::K, self.k),
+            (Param::BasisRank, self.basis_rank),
+            (Param::AppearanceDims, self.appearance_dims),
         ];
-        for (flag, value) in positive {
+        for (param, value) in positive {
             if value == 0 {
-                return Err(Error::invalid(format!("{flag} must be at least 1")));
+                return Err(Error::out_of_range(param, value, "must be at least 1"));
             }
         }
-        if self.neighborhood < 3 || self.neighborhood % 2 == 0 {
-            return Err(Error::invalid(format!(
-                "--neighborhood {} must be odd and at least 3",
-                self.neighborhood
-            )));
+        let n = self.neighborhood;
+        if n < 3 || n % 2 == 0 {
+            return Err(Error::out_of_range(Param::Neighbourhood, n, "must be odd and at least 3"));
         }
         let need = self.neighborhood + 4;
         let sizes = level_sizes(width, height, self.levels);
@@ -122,16 +120,23 @@ impl AnalysisParams {
                     w.min(h) >= need
                 })
                 .count();
-            let n = self.neighborhood;
             if fit == 0 {
-                return Err(Error::invalid(format!(
-                    "the sample is {width}x{height} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; analyse a larger sample or use a smaller --neighborhood"
-                )));
+                return Err(Error::out_of_range(
+                    Param::Neighbourhood,
+                    n,
+                    format!(
+                        "the sample is {width}x{height} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; analyse a larger sample or use a smaller neighbourhood"
+                    ),
+                ));
             }
-            return Err(Error::invalid(format!(
-                "--levels {}: the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}; use --levels {fit} or fewer",
-                self.levels
-            )));
+            return Err(Error::OutOfRange {
+                param: Param::Levels,
+                value: self.levels.to_string(),
+                message: format!(
+                    "the coarsest level would be {w}x{h} pixels, but a {n}x{n} neighbourhood search needs at least {need}x{need}"
+                ),
+                remedy: Some(Remedy::FewerLevels(fit)),
+            });
         }
         Ok(())
     }

@@ -54,7 +54,7 @@ pub struct Manifest {
     pub height: usize,
     pub k: usize,
     pub levels: Vec<LevelInfo>,
-    /// Material maps stored beside the sample (`analyze --maps`; see [`crate::maps`]).
+    /// Material maps stored beside the sample (see [`crate::maps`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub maps: Vec<crate::maps::MapInfo>,
     /// The sample as factors (absent: `images.npy` holds the images).
@@ -451,8 +451,8 @@ fn manifest(
 }
 
 /// What an analysis took: seconds per stage and the peak memory. Not part of
-/// `analysis.json`, which holds only what the same inputs always give (`analyze --report`
-/// writes this).
+/// `analysis.json`, which holds only what the same inputs always give (a report of the
+/// run holds this).
 pub fn timings_json(analysis: &Analysis) -> serde_json::Value {
     let t = &analysis.timings;
     serde_json::json!({

@@ -11,7 +11,7 @@ use crate::btf::colour::ColourModel;
 use crate::btf::ubo2014::write::ChannelFactors;
 use crate::btf::{Btf, Direction, DirectionPair};
 use crate::progress::Progress;
-use crate::{seeded, Error, Result};
+use crate::{seeded, Error, Param, Result};
 use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{Array2, ArrayView2, Axis};
 use std::collections::HashMap;
@@ -76,7 +76,7 @@ pub fn factorize(
     progress: &dyn Progress,
 ) -> Result<Factorization> {
     if components == 0 {
-        return Err(Error::invalid("--components must be at least 1"));
+        return Err(Error::out_of_range(Param::Components, 0, "must be at least 1"));
     }
     let grid = grid(btf)?;
     let mut channels = Vec::with_capacity(3);

@@ -28,7 +28,7 @@ pub use write::{write_images, write_stack, ImageFormat};
 use crate::{Error, Result};
 use half::f16;
 
-/// A rectangle of the sample, in pixels: `--crop x,y,w,h`.
+/// A rectangle of the sample, in pixels: origin `x, y`, size `w × h`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
     pub x: u32,
@@ -43,7 +43,11 @@ impl std::str::FromStr for Crop {
     fn from_str(s: &str) -> Result<Self> {
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
         let bad = || {
-            Error::invalid(format!("crop '{s}': expected x,y,w,h (four non-negative integers, w and h > 0)"))
+            Error::out_of_range(
+                crate::Param::Crop,
+                format!("'{s}'"),
+                "expected x,y,w,h (four non-negative integers, w and h > 0)",
+            )
         };
         if parts.len() != 4 {
             return Err(bad());

@@ -3,12 +3,12 @@
 //! A measured BTF file can hold far more than memory: a 400×400 UBO2014 material is
 //! 22,801 images, 22 GB as f16. An [`ImageSource`] knows its size and directions up front
 //! and decodes image `i` when asked, so `info` reads only a header, `convert` streams image
-//! by image, and `--crop` decodes only the crop. [`crate::btf::stack_file::open`] gives the
+//! by image, and a crop decodes only its rectangle. [`crate::btf::stack_file::open`] gives the
 //! lazy source of a `.btf` file or a zip archive; [`Btf`] itself is the in-memory source.
 
 use crate::btf::{Btf, Crop, DirectionPair};
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 use half::f16;
 use rayon::prelude::*;
 use std::path::Path;
@@ -70,18 +70,19 @@ impl ImageSource for Btf {
     }
 }
 
-/// Fails with a message that suggests `--crop` when `images` decoded images of
+/// Fails, suggesting a crop, when `images` decoded images of
 /// `per_image` f16 values would not fit in the memory budget ([`memory_budget`]).
 pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Result<()> {
     let needed = (images as u128 * per_image as u128 * 2).min(u64::MAX as u128) as u64;
     match memory_budget()? {
-        Some((budget, source)) if needed > budget => Err(Error::format(
-            path,
+        Some((budget, source)) if needed > budget => Err(Error::too_large(
             format!(
-                "decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget ({source}); decode a part with --crop x,y,w,h",
+                "{}: decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget ({source})",
+                path.display(),
                 needed as f64 / (1u64 << 30) as f64,
                 budget as f64 / (1u64 << 30) as f64
             ),
+            Remedy::Crop,
         )),
         _ => Ok(()),
     }

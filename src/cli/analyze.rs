@@ -99,7 +99,7 @@ fn check_sample_size(args: &AnalyzeArgs, params: &AnalysisParams, (w, h): (usize
             )
             .into());
         }
-        return Err(usage(e));
+        return Err(super::usage_of(e));
     }
     let sizes = btfsynth::analysis::pyramid::level_sizes(w, h, params.levels);
     let (cw, ch) = sizes[sizes.len() - 1];

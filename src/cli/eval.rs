@@ -1,7 +1,7 @@
 //! `btfsynth eval`: quality of a synthesized result against its sample.
 
+use super::hints::with_force_hint;
 use super::progress::Bars;
-use super::shots::with_force_hint;
 use anyhow::{bail, Result};
 use btfsynth::analysis::store::verify_fingerprint;
 use btfsynth::eval::report::{

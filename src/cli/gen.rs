@@ -66,7 +66,7 @@ pub fn run(args: GenArgs, bars: &Bars) -> Result<()> {
         seed: args.seed,
         samples_per_pixel: args.spp,
     };
-    params.validate().map_err(usage)?;
+    params.validate().map_err(super::usage_of)?;
     check_dir_target(&output, args.force)?;
     let started = Instant::now();
     let stack = generate(kind, &params, bars)?;

@@ -6,6 +6,7 @@ mod demo;
 mod eval;
 mod export;
 mod gen;
+mod hints;
 mod info;
 mod progress;
 mod relight;
@@ -134,6 +135,11 @@ impl std::error::Error for UsageError {}
 /// A usage error with `message` (see [`UsageError`]).
 pub(crate) fn usage(message: impl std::fmt::Display) -> anyhow::Error {
     anyhow::Error::new(UsageError(message.to_string()))
+}
+
+/// A library error that a flag caused, as a usage error naming the flag ([`hints`]).
+pub(crate) fn usage_of(e: btfsynth::Error) -> anyhow::Error {
+    usage(hints::text(&e))
 }
 
 /// The most worker threads `--threads` starts: all start before any work, and hundreds
@@ -268,12 +274,13 @@ fn first_paragraph(text: &str) -> String {
     joined.strip_prefix("error: ").unwrap_or(&joined).to_string()
 }
 
-/// The error and its causes on one line, without repeating a cause a message already quotes.
+/// The error and its causes on one line, without repeating a cause a message already
+/// quotes; the library's errors name flags ([`hints`]).
 fn one_line(e: &anyhow::Error) -> String {
     let mut line = String::new();
     for cause in e.chain() {
-        let text = cause.to_string();
-        if !line.contains(&text) {
+        let text = hints::text(cause);
+        if !line.contains(&text) && !line.contains(&cause.to_string()) {
             if !line.is_empty() {
                 line.push_str(": ");
             }

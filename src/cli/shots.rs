@@ -1,5 +1,6 @@
 //! Options that `render` and `view` share: which surface, which shots, which shading.
 
+use super::hints::with_force_hint;
 use anyhow::Result;
 use btfsynth::render::scene::{open_surface, Scene};
 use btfsynth::render::{Environment, FrameFormat, Mode, Orbit, ShotPlan};
@@ -180,15 +181,5 @@ pub fn parse_angles(s: &str) -> Result<(f32, f32), String> {
     match (t.trim().parse::<f32>(), p.trim().parse::<f32>()) {
         (Ok(t), Ok(p)) if (0.0..=180.0).contains(&t) && p.is_finite() => Ok((t, p)),
         _ => Err(bad()),
-    }
-}
-
-/// A mismatched analysis, with the way to use it anyway.
-pub fn with_force_hint(e: btfsynth::Error) -> anyhow::Error {
-    match e {
-        btfsynth::Error::AnalysisMismatch { .. } => {
-            anyhow::anyhow!("{e}; pass --force-analysis to use it anyway")
-        }
-        other => other.into(),
     }
 }

@@ -137,7 +137,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         first_face: args.first_face,
         orientation: args.orientation,
     };
-    params.validate().map_err(usage)?;
+    params.validate().map_err(super::usage_of)?;
     if let Some(f) = args.first_face.filter(|&f| f >= mesh.triangles.len()) {
         return Err(usage(format!(
             "--first-face {f}: {} has {} faces (0 to {})",

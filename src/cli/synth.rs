@@ -1,7 +1,7 @@
 //! `btfsynth synth`: texton map synthesis on a mesh (surface mode) or a grid (plane mode).
 
 use super::progress::Bars;
-use super::usage;
+use super::{usage, usage_of};
 use anyhow::{Context, Result};
 use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
 use btfsynth::mesh::field::Orientation;
@@ -187,8 +187,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         return soler2002(&args, &analysis, (staged_output, staged_report), bars);
     }
     let orientation = match &args.mesh {
+        // A bad value is a usage error; a constraints file that cannot be read is not.
         Some(_) => Some(Orientation::parse(&args.orient).map_err(|e| match e {
-            btfsynth::Error::InvalidArgument(m) => usage(format!("--orient: {m}")),
+            btfsynth::Error::OutOfRange { .. } => usage_of(e),
             other => other.into(),
         })?),
         None => None,
@@ -214,14 +215,14 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     };
     let preset = match &args.recipe {
         Some(file) => read_recipe(file)?,
-        None => Preset::by_name(&args.preset).map_err(usage)?,
+        None => Preset::by_name(&args.preset).map_err(usage_of)?,
     };
     if preset.uses(MetricKind::Colour) {
         sample.load_colours(&analysis)?;
     }
-    preset.check_sample(&sample.levels).map_err(usage)?;
+    preset.check_sample(&sample.levels).map_err(usage_of)?;
     // Before any remeshing: a refused search is a usage error.
-    preset.check_search(search).map_err(usage)?;
+    preset.check_search(search).map_err(usage_of)?;
     let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
     let marching_cache = match &args.marching_cache {
         Some(dir) if args.mesh.is_some() && params.preset.rounds() => {
@@ -371,7 +372,7 @@ fn surface(
 ) -> Result<(Vec<LevelReport>, usize)> {
     let mesh = btfsynth::mesh::load(mesh_path)?;
     if !matches!(density, Density::Vertices(_)) {
-        let texel = density.texel(&mesh).map_err(usage)?;
+        let texel = density.texel(&mesh).map_err(usage_of)?;
         let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * f64::from(texel).powi(2));
         let flag = if args.scale.is_some() { "--scale" } else { "--texels-across" };
         check_vertices(estimate.round() as usize, flag, levels, args.neighborhood)

@@ -23,7 +23,7 @@ use std::path::Path;
 #[derive(Clone, Debug, Serialize)]
 pub struct Evaluation {
     /// `plane`, `surface`, `uvmap` (texture coordinates on the user's mesh, from
-    /// `synth --method soler2002`) or `picture`.
+    /// pattern mapping, [`crate::synth::patches`]) or `picture`.
     pub kind: &'static str,
     /// Output vertices (pixels of a plane or picture).
     pub vertices: usize,
@@ -46,15 +46,16 @@ pub struct ProbeQuality {
     pub probe: Probe,
     #[serde(flatten)]
     pub quality: PictureQuality,
-    /// Tileable planes (`synth --tileable-output`) only: the patch energy of the result's
-    /// patches that cross its wrap edge, i.e. of the joins between repeated copies. About
-    /// `patch_energy` when the result tiles without a visible seam (the patches along two
-    /// lines are a small sample: 0.5–2.4× it over the benchmark's photographs).
+    /// Tileable planes (synthesized with `tiles`, [`crate::synth::plane::synthesize_plane`]) only:
+    /// the patch energy of the result's patches that cross its wrap edge, i.e. of the joins between
+    /// repeated copies. About `patch_energy` when the result tiles without a visible seam (the
+    /// patches along two lines are a small sample: 0.5–2.4× it over the benchmark's photographs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wrap_seam_energy: Option<f64>,
 }
 
-/// A plane result directory (from `synth --plane`) against the analysis in `analysis_dir`.
+/// A plane result directory (from [`crate::synth::plane::write_plane`]) against the analysis
+/// in `analysis_dir`.
 pub fn evaluate_plane(analysis_dir: &Path, plane_dir: &Path) -> Result<Evaluation> {
     let (width, height, state, manifest) = read_plane(plane_dir)?;
     let neighborhood = manifest["params"]["neighborhood"].as_u64().unwrap_or(5) as usize;
@@ -121,7 +122,7 @@ pub fn evaluate_surface(
     })
 }
 
-/// A texture-mapped mesh (`synth --method soler2002`) against the analysis in
+/// A texture-mapped mesh (pattern mapping, [`crate::synth::patches`]) against the analysis in
 /// `analysis_dir`. It has no texton labels and no per-vertex coordinates, so only the
 /// image-space measures apply, on the surface itself: the patch energy of 7×7 windows
 /// resampled on the surface at one sample texel per pixel (3,000 faces drawn with seed 1;

@@ -18,7 +18,7 @@
 
 use crate::mesh::textured::{TexturedMesh, UvLayer};
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 use glam::{Vec2, Vec3, Vec4};
 use std::collections::HashMap;
 
@@ -92,10 +92,10 @@ impl AtlasMesh {
         progress.finish();
         let atlas = atlas?;
         if atlas.page_count > 1 {
-            return Err(Error::invalid(format!(
-                "the generated atlas needs {} pages of {}² texels; give a larger --size or a smaller --padding",
-                atlas.page_count, options.size
-            )));
+            return Err(Error::too_large(
+                format!("the generated atlas needs {} pages of {}² texels", atlas.page_count, options.size),
+                Remedy::LargerAtlas,
+            ));
         }
         let out = atlas.meshes.into_iter().next().unwrap_or_default();
         // The page is cropped to the rows it uses; keep texel rows where they are in a

@@ -29,7 +29,7 @@ use crate::mesh::textured::{load_textured, TexturedMesh};
 use crate::progress::Progress;
 use crate::render::scene::open_surface;
 use crate::render::{Blend16, Material, Scene};
-use crate::{Error, Result};
+use crate::{Error, Param, Remedy, Result};
 use bake::{bake, bake_blend, vertex_colours, Baked, MapLookup, Source, Target};
 use glam::Vec3;
 use gltf::Document;
@@ -123,11 +123,11 @@ pub fn export(
     let started = Instant::now();
     let binary = is_binary_output(output)?;
     if let Some(size) = options.size.filter(|s| !SIZE_RANGE.contains(s)) {
-        return Err(Error::invalid(format!(
-            "--size {size}: the atlas side must be between {} and {} texels",
-            SIZE_RANGE.start(),
-            SIZE_RANGE.end()
-        )));
+        return Err(Error::out_of_range(
+            Param::AtlasSize,
+            size,
+            format!("the atlas side must be between {} and {} texels", SIZE_RANGE.start(), SIZE_RANGE.end()),
+        ));
     }
     for file in output_files(output, binary) {
         check_target(&file, options.overwrite)?;
@@ -213,7 +213,7 @@ pub fn bake_export(
     let light = options.light.filter(|_| material.len() > 1);
     if options.light.is_some() && light.is_none() {
         tracing::warn!(
-            "{}: a one-image BTF has one light; --light is ignored",
+            "{}: a one-image BTF has one light; the light direction is ignored",
             source.names.analysis.display()
         );
     }
@@ -344,10 +344,10 @@ impl TexturedJob<'_> {
         let texel = self.look.scene.texel;
         let surface_area = surface_area(self.mesh);
         match (&self.mesh.uvs, self.options.uvs) {
-            (None, UvChoice::Keep) => Err(Error::invalid(format!(
-                "{}: the mesh has no texture coordinates to keep (drop --keep-uvs to generate an atlas)",
-                self.mesh_path.display()
-            ))),
+            (None, UvChoice::Keep) => Err(Error::unavailable(
+                format!("{}: the mesh has no texture coordinates to keep", self.mesh_path.display()),
+                Remedy::GenerateAtlas,
+            )),
             (Some(uvs), UvChoice::Auto | UvChoice::Keep) => {
                 let atlas = AtlasMesh::from_file_uvs(self.mesh, uvs);
                 let size =
@@ -538,22 +538,25 @@ pub fn original_mesh(surface: &Path, given: Option<&Path>) -> Result<PathBuf> {
         return if path.is_file() {
             Ok(path.to_path_buf())
         } else {
-            Err(Error::invalid(format!("--mesh {}: no such file", path.display())))
+            Err(Error::out_of_range(Param::Mesh, path.display(), "no such file"))
         };
     }
     let comments = surface_comments(surface)?;
     let field =
         |key: &str| comments.iter().find_map(|c| c.strip_prefix(key)).map(|v| PathBuf::from(v.trim()));
-    let written = field("mesh ")
-        .ok_or_else(|| Error::format(surface, "no 'mesh' comment in the header: pass --mesh FILE"))?;
+    let written = field("mesh ").ok_or_else(|| {
+        Error::unavailable(
+            format!("{}: no 'mesh' comment in the header", surface.display()),
+            Remedy::GiveMesh,
+        )
+    })?;
     let beside = surface.parent().map(|dir| dir.join(&written));
     let candidates = [Some(written.clone()), beside, field("mesh_absolute ")];
     candidates.into_iter().flatten().find(|p| p.is_file()).ok_or_else(|| {
-        Error::invalid(format!(
-            "{}: its original mesh {} is missing; pass --mesh FILE",
-            surface.display(),
-            written.display()
-        ))
+        Error::unavailable(
+            format!("{}: its original mesh {} is missing", surface.display(), written.display()),
+            Remedy::GiveMesh,
+        )
     })
 }
 

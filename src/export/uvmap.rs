@@ -1,9 +1,9 @@
-//! Export of a texture-mapped result (`synth --method soler2002`): nothing is baked. The
-//! mesh is the one in the result (the user's, faces as given), split at texture seams; its
-//! texture coordinates are the result's; its textures are the sample itself at full
-//! resolution (the image `--light` picks, as for baking) and the analysis' material maps
-//! sampled at the sample's texels. A tileable sample repeats (glTF `REPEAT`), one that does
-//! not is clamped (its coordinates never leave it).
+//! Export of a texture-mapped result (pattern mapping, [`crate::synth::patches`]): nothing is
+//! baked. The mesh is the one in the result (the user's, faces as given), split at texture seams;
+//! its texture coordinates are the result's; its textures are the sample itself at full resolution
+//! (the image [`ExportOptions::light`] picks, as for baking) and the analysis' material maps
+//! sampled at the sample's texels. A tileable sample repeats (glTF `REPEAT`), one that does not is
+//! clamped (its coordinates never leave it).
 
 use super::bake::{bake_blend, Baked, MapLookup};
 use super::layout::{vertex_normals, vertex_tangents, AtlasMesh};
@@ -42,7 +42,7 @@ pub(super) fn export_uv_map(
     }
     if options.size.is_some() {
         tracing::warn!(
-            "{}: a texture-mapped result uses the sample itself; --size is ignored",
+            "{}: a texture-mapped result uses the sample itself; the atlas size is ignored",
             surface.display()
         );
     }

@@ -4,11 +4,11 @@
 //! metallic, ambient occlusion, height). Synthesis chooses, per output texel, a coordinate
 //! into the sample; copying every map through the same coordinates gives a matching set.
 //!
-//! - `analyze IMAGE --maps normal=n.png,height=h.exr` stores each map beside the sample
-//!   images in the analysis directory (`map_normal.png`, `map_height.exr`, cropped like the
+//! - An analysis given maps (a normal map `n.png`, a height map `h.exr`) stores each one beside the
+//!   sample images in the analysis directory (`map_normal.png`, `map_height.exr`, cropped like the
 //!   sample, at the file's own depth) and lists it in `analysis.json` ([`MapInfo`]).
-//! - `synth --plane` writes `result_<kind>.<png|exr>`, each texel the map's sample at the
-//!   plane's coordinate ([`stored::write_plane_maps`]): same depth, same format, same channels.
+//! - A synthesized plane is written with `result_<kind>.<png|exr>`, each texel the map's sample at
+//!   the plane's coordinate ([`stored::write_plane_maps`]): same depth, same format, same channels.
 //! - `export` bakes each map into its glTF slot (see `crate::export`).
 
 pub mod image;

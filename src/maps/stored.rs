@@ -6,7 +6,7 @@ use crate::analysis::store;
 use crate::{Error, Result};
 use std::path::Path;
 
-/// Reads the maps an analysis directory lists (none for analyses made without `--maps`).
+/// Reads the maps an analysis directory lists (none for analyses made without material maps).
 pub fn open_maps(analysis_dir: &Path) -> Result<Vec<MaterialMap>> {
     let manifest = store::read_manifest(analysis_dir)?;
     manifest

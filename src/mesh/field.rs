@@ -99,9 +99,11 @@ impl Orientation {
         }
         let path = Path::new(arg);
         if !path.exists() {
-            return Err(Error::invalid(format!(
-                "orientation {arg:?}: expected `smooth`, `axis:x,y,z` or the path of a JSON constraints file"
-            )));
+            return Err(Error::out_of_range(
+                crate::Param::FrameOrientation,
+                format!("{arg:?}"),
+                "expected `smooth`, `axis:x,y,z` or the path of a JSON constraints file",
+            ));
         }
         load_constraints(path).map(Orientation::Constraints)
     }
@@ -109,12 +111,13 @@ impl Orientation {
 
 /// Parses `x,y,z` into a finite, non-zero vector.
 fn parse_axis(text: &str) -> Result<Vec3> {
-    let bad = || Error::invalid(format!("orientation axis {text:?}: expected three numbers `x,y,z`"));
+    let refuse =
+        |why: &str| Error::out_of_range(crate::Param::FrameOrientation, format!("axis {text:?}"), why);
+    let bad = || refuse("expected three numbers `x,y,z`");
     let parts: Vec<f32> =
         text.split(',').map(|p| p.trim().parse::<f32>().map_err(|_| bad())).collect::<Result<_>>()?;
     let [x, y, z] = parts[..] else { return Err(bad()) };
-    check_direction(Vec3::new(x, y, z))
-        .map_err(|why| Error::invalid(format!("orientation axis {text:?}: {why}")))
+    check_direction(Vec3::new(x, y, z)).map_err(|why| refuse(&why))
 }
 
 /// Why `d` cannot be a direction, if it cannot.
@@ -559,8 +562,10 @@ mod tests {
         for arg in
             ["axis:", "axis:1,2", "axis:1,2,3,4", "axis:a,b,c", "axis:0,0,0", "axis:NaN,0,1", "axis:inf,0,0"]
         {
-            let e = Orientation::parse(arg).expect_err(arg).to_string();
-            assert!(e.contains("orientation axis") && !e.contains('\n'), "{arg}: {e}");
+            let e = Orientation::parse(arg).expect_err(arg);
+            assert!(matches!(e, Error::OutOfRange { param: crate::Param::FrameOrientation, .. }), "{e:?}");
+            let e = e.to_string();
+            assert!(e.starts_with("frame orientation axis") && !e.contains('\n'), "{arg}: {e}");
         }
         assert!(Orientation::parse("no-such-file.json").is_err());
     }

@@ -1,8 +1,8 @@
 //! Cameras, lights and the sequence of shots a render or the headless viewer takes.
 //!
 //! World directions are given as (θ, φ) in degrees with +Y up: θ is the angle from +Y, φ
-//! the azimuth about Y from +Z towards +X. So `--view 90,0` looks at the model from +Z,
-//! level with its centre, and `--light 0,0` lights it from straight above.
+//! the azimuth about Y from +Z towards +X. So a view of `90,0` looks at the model from +Z,
+//! level with its centre, and a light of `0,0` lights it from straight above.
 
 use glam::{Mat4, Vec3};
 

@@ -12,8 +12,8 @@
 //!
 //! **Map orientation.** World +Y is up. Row `y` of an H-row map looks at θ = 180°·(y + ½)/H
 //! from +Y (the top row is the zenith) and column `x` of a W-column map at azimuth
-//! φ = 360°·(x + ½)/W about +Y, from +Z towards +X: the `--light θ,φ` convention, so the
-//! pixel of an environment that lies in direction `--light θ,φ` lights from there.
+//! φ = 360°·(x + ½)/W about +Y, from +Z towards +X: the convention of a light's `θ,φ`, so
+//! the pixel of an environment that lies in the direction of a light `θ,φ` lights from there.
 
 use super::camera::world_direction;
 use crate::{Error, Result};
@@ -47,7 +47,7 @@ const MAP_CELLS: (usize, usize) = (80, 40);
 const SKY_CELLS: (usize, usize) = (48, 24);
 
 impl Environment {
-    /// A sky of the same radiance from every direction (`--ambient F` is `uniform(F)`).
+    /// A sky of the same radiance from every direction (an ambient term `F` is `uniform(F)`).
     pub fn uniform(radiance: Vec3) -> Environment {
         Environment { uniform: radiance, samples: Vec::new() }
     }

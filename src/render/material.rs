@@ -57,7 +57,7 @@ pub struct Material {
 /// factors stay and values are computed on the fly. Time always favours decoding where it
 /// fits: a 1024² render with shadows (4 samples per pixel, 32 components per channel) from
 /// 32², 48² and 64² crops of 22,801 images took 2.7, 3.5 and 4.7 s decoded (0.26–1.04 GiB
-/// of values) against 18.6, 18.3 and 20.6 s from the factors (`benches/big_btf.sh --use`),
+/// of values) against 18.6, 18.3 and 20.6 s from the factors (`benches/big_btf.sh`, its `use` step),
 /// so the limit is set by memory: 2 GiB, which keeps a render's peak near 2.3 GB.
 /// `BTFSYNTH_DECODE_LIMIT` (a size, as `BTFSYNTH_MEMORY`) overrides it for
 /// [`Material::open`]: `0` keeps every factored sample as factors, `unlimited` decodes

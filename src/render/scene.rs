@@ -7,7 +7,7 @@ use super::material::{Blend16, Material};
 use crate::mesh::frames::Frames;
 use crate::mesh::Mesh;
 use crate::synth::surface_map::{read_surface_ply, SurfaceMap, ANALYSIS_FINGERPRINT_KEY, ANALYSIS_KEY};
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -36,9 +36,10 @@ pub struct Scene {
     pub labels: Vec<u16>,
     /// One sample texel in model units.
     pub texel: f32,
-    /// A texture-mapped mesh (`synth --method soler2002`): vertices split at texture seams,
-    /// and pixel mode interpolates the corners' sample coordinates across each triangle, as
-    /// a rasteriser does, instead of letting each corner predict from its tangent frame.
+    /// A texture-mapped mesh (pattern mapping, [`crate::synth::patches`]): vertices split at
+    /// texture seams, and pixel mode interpolates the corners' sample coordinates across each
+    /// triangle, as a rasteriser does, instead of letting each corner predict from its tangent
+    /// frame.
     pub mapped: bool,
 }
 
@@ -179,7 +180,7 @@ impl Scene {
     }
 
     /// The sample itself on a flat quad in the world's XZ plane (normal +Y, s = +X, rows
-    /// running towards +Z), one model unit per texel, its map the identity: what `--compare`
+    /// running towards +Z), one model unit per texel, its map the identity: what a comparison
     /// puts beside each frame.
     pub fn sample_quad(material: &Material) -> Result<Scene> {
         let (w, h) = (material.width() as f32, material.height() as f32);
@@ -334,10 +335,13 @@ pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Resul
         Some(a) => a.to_path_buf(),
         None => crate::synth::surface_map::find_analysis(&comments, path).ok_or_else(|| {
             let named = comment(ANALYSIS_KEY).unwrap_or("none");
-            Error::invalid(format!(
-                "{}: its analysis ({named}) is missing, beside the map and at its recorded path; pass --analysis DIR",
-                path.display()
-            ))
+            Error::unavailable(
+                format!(
+                    "{}: its analysis ({named}) is missing, beside the map and at its recorded path",
+                    path.display()
+                ),
+                Remedy::GiveAnalysis,
+            )
         })?,
     };
     if !dir.join(crate::analysis::store::MANIFEST).is_file() {

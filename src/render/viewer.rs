@@ -50,7 +50,7 @@ pub fn run(scene: Scene, sample: GpuSample, plan: &ShotPlan, options: ViewerOpti
         let text = e.to_string();
         let reason =
             text.strip_prefix("os error at ").and_then(|t| t.split_once(": ")).map_or(&*text, |(_, r)| r);
-        Error::invalid(format!("cannot open a window ({reason}); render offscreen with --headless -o DIR"))
+        Error::unavailable(format!("cannot open a window ({reason})"), crate::Remedy::Headless)
     };
     let event_loop = EventLoop::new().map_err(|e| no_window(&e))?;
     let mut app = App {
@@ -221,17 +221,15 @@ impl App {
         let attributes = Window::default_attributes()
             .with_title("btfsynth view")
             .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
-        let window = Arc::new(
-            event_loop
-                .create_window(attributes)
-                .map_err(|e| Error::invalid(format!("cannot open a window ({e}); use --headless -o DIR")))?,
-        );
+        let window = Arc::new(event_loop.create_window(attributes).map_err(|e| {
+            Error::unavailable(format!("cannot open a window ({e})"), crate::Remedy::Headless)
+        })?);
         let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
             event_loop.owned_display_handle(),
         ));
         let instance = wgpu::Instance::new(descriptor);
         let surface = instance.create_surface(window.clone()).map_err(|e| {
-            Error::invalid(format!("cannot draw into the window: {e}; use --headless -o DIR"))
+            Error::unavailable(format!("cannot draw into the window: {e}"), crate::Remedy::Headless)
         })?;
         let gpu = Gpu::new(&instance, Some(&surface))?;
         let size = window.inner_size();

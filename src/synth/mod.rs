@@ -102,10 +102,14 @@ pub fn synthesize(
     }
     let last = &sample.levels[targets.len() - 1];
     if params.neighborhood > last.width.min(last.height) {
-        return Err(Error::invalid(format!(
-            "a {0}x{0} neighbourhood does not fit in the coarsest sample level in use ({1}x{2})",
-            params.neighborhood, last.width, last.height
-        )));
+        return Err(Error::out_of_range(
+            crate::Param::Neighbourhood,
+            params.neighborhood,
+            format!(
+                "a {0}x{0} neighbourhood does not fit in the coarsest sample level in use ({1}x{2})",
+                params.neighborhood, last.width, last.height
+            ),
+        ));
     }
     let preset = &params.preset;
     preset.validate()?;

@@ -49,9 +49,11 @@ pub fn synthesize_plane(
     progress: &dyn Progress,
 ) -> Result<PlaneResult> {
     if width == 0 || height == 0 || width * height > 1 << 26 {
-        return Err(Error::invalid(format!(
-            "--plane {width}x{height}: sides must be at least 1 and the area at most 2^26"
-        )));
+        return Err(Error::out_of_range(
+            crate::Param::PlaneSize,
+            format!("{width}x{height}"),
+            "sides must be at least 1 and the area at most 2^26",
+        ));
     }
     let targets = wrapping_grid_levels(
         width,

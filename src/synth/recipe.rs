@@ -55,8 +55,8 @@ pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum Stencil {
-    /// The square template of Tong, Turk and Wei–Levoy: `--neighborhood` texels a side
-    /// (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
+    /// The square template of Tong, Turk and Wei–Levoy: `SynthParams::neighborhood` texels a
+    /// side (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
     /// whole square, `Visited` the causal part, `Half` Turk's half square, `Off` none of it.
     /// Matched by the `Gamma`, `Appearance` and `Colour` metrics. A recipe that names no
     /// stencil (one recorded before the field existed) means this one.
@@ -142,9 +142,9 @@ pub enum ParentNeighbourhood {
 /// Where a pass's candidates come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Candidates {
-    /// The search given to `synth` (`--search`: k-coherence by default, or full).
+    /// The search given to synthesis (`SynthParams::search`: k-coherence by default, or full).
     Search,
-    /// Every candidate texel, whatever `--search` says.
+    /// Every candidate texel, whatever the search given.
     Full,
 }
 
@@ -186,9 +186,9 @@ pub struct LevelRecipe {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Preset {
-    /// The name `--preset` knows it by (for a recipe read from a file, whatever it says).
+    /// The name [`Preset::by_name`] knows it by (for a recipe read from a file, whatever it says).
     pub name: String,
-    /// The paper the preset follows, for `--list-presets`.
+    /// The paper the preset follows, for listing the presets.
     pub paper: String,
     /// The coarsest level (its start may not be [`Start::Inherit`]).
     pub coarsest: LevelRecipe,
@@ -264,8 +264,8 @@ impl Preset {
     /// Turk 2001 §5.2: the coarsest level from random texels, one half-square H(n, 0)
     /// pass in sweep order for the initial pattern; every finer level extrapolated with
     /// F(n, 1) and refined with F(n, 0) + F(3, 1), all in sweep order. Departures (docs/synthesis.md):
-    /// appearance vectors for colours, the `--search` given (k-coherence by default; `--search
-    /// full` is the paper's), and choosy selection with a coherence bias.
+    /// appearance vectors for colours, the search given (k-coherence by default; the full
+    /// search is the paper's), and choosy selection with a coherence bias.
     pub fn turk2001() -> Self {
         let pass = |mask, parent| Pass {
             order: VisitOrder::Sweep,
@@ -326,8 +326,8 @@ impl Preset {
     /// coordinate form of copying the four Laplacian children (Algorithm 2) and adding them
     /// to the projected coarser level.
     ///
-    /// Departures (docs/castellanos.md): the square template of `--neighborhood` in place of
-    /// the triangular 2-distant stencil, without the paper's proximity weights and three
+    /// Departures (docs/castellanos.md): the square template of `SynthParams::neighborhood`
+    /// in place of the triangular 2-distant stencil, without the paper's proximity weights and three
     /// rotations; the exhaustive search on the coarsest level only, k-coherence candidates on
     /// the finer ones (the paper's exhaustive search there needs its kd-trees, §6); the
     /// inversion's blend across seams is not formed (a vertex starts from its inherited
@@ -385,10 +385,7 @@ impl Preset {
             .all_passes()
             .any(|p| p.metric == MetricKind::Adaptive && pass_search(p, search) == Search::Full);
         if adaptive_full {
-            return Err(Error::invalid(format!(
-                "--search full: preset '{}' takes its candidates around the linked texels (k-coherence) only; use --search kcoherence",
-                self.name
-            )));
+            return Err(Error::IncompatibleSearch { preset: self.name.clone() });
         }
         Ok(())
     }
@@ -398,7 +395,7 @@ impl Preset {
         vec![Self::appearance(), Self::tong2002(), Self::turk2001(), Self::chen2008(), Self::castellanos()]
     }
 
-    /// Presets by name, for `--preset`.
+    /// Presets by name ([`Preset::name`]).
     pub fn by_name(name: &str) -> Result<Self> {
         Self::all().into_iter().find(|p| p.name == name).ok_or_else(|| {
             let names: Vec<String> = Self::all().into_iter().map(|p| p.name).collect();
@@ -481,10 +478,13 @@ impl Preset {
     pub fn check_sample(&self, levels: &[SampleLevel]) -> Result<()> {
         let needs_appearance = self.uses(MetricKind::Appearance) || self.uses(MetricKind::Adaptive);
         if needs_appearance && levels.iter().any(|l| l.appearance.is_none()) {
-            return Err(Error::invalid(format!(
-                "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth): re-run analyze, or use --preset tong2002",
-                self.name
-            )));
+            return Err(Error::unavailable(
+                format!(
+                    "preset '{}' matches appearance vectors, which this analysis lacks (written by an older btfsynth)",
+                    self.name
+                ),
+                crate::Remedy::Reanalyze,
+            ));
         }
         if let (Some(round), Some(coarsest)) = (self.round_stencil(), levels.last()) {
             round_fits(round, coarsest)

@@ -222,10 +222,11 @@ impl Sample {
 
 fn check_level_count(levels: usize, manifest: &Manifest, name: &str) -> Result<()> {
     if levels == 0 || levels > manifest.levels.len() {
-        return Err(Error::invalid(format!(
-            "--levels {levels}: the analysis {name} has {} level(s)",
-            manifest.levels.len()
-        )));
+        return Err(Error::out_of_range(
+            crate::Param::Levels,
+            levels,
+            format!("the analysis {name} has {} level(s)", manifest.levels.len()),
+        ));
     }
     Ok(())
 }

@@ -1,8 +1,9 @@
 //! One template pixel as the engine stores it: three vertices and barycentric weights. A
-//! leaf, so that targets, flattening and round neighbourhoods can all name it.
+//! leaf (it uses only [`crate::sentinel`]), so that targets, flattening and round
+//! neighbourhoods can all name it.
 
 /// Marks a template pixel outside the patch: it holds the default texton.
-pub const OUTSIDE: u32 = u32::MAX;
+pub use crate::sentinel::OUTSIDE;
 
 /// One template pixel: s = Σ wₐ t(vertexₐ), the 6-tuple (w0, w1, w2, t0, t1, t2) of Tong
 /// §5.1 with the textons looked up from the vertices at synthesis time. A pixel outside the

@@ -83,7 +83,7 @@ pub const MAX_VERTICES: usize = 3_000_000;
 /// What one vertex of the finest mesh costs at synthesis' peak, with the coarser levels,
 /// their templates and the engine's state, at the default 7×7 neighbourhood: measured
 /// 1.07 GiB for 250,000 vertices (bunny-37k.off from the full 400² × 22,801-image
-/// analysis, `benches/big_btf.sh --use`) and 1.11 GB from a 64² BTF (`benches/speed.sh`).
+/// analysis, `benches/big_btf.sh`, its `use` step) and 1.11 GB from a 64² BTF (`benches/speed.sh`).
 pub const BYTES_PER_VERTEX: u64 = 4_600;
 
 /// Refuses a finest mesh of about `vertices` whose synthesis would not fit the memory
@@ -92,11 +92,14 @@ fn check_memory(vertices: f64) -> Result<()> {
     use crate::analysis::memory::gib;
     let need = (vertices * BYTES_PER_VERTEX as f64) as u64;
     match crate::btf::source::memory_budget()? {
-        Some((limit, source)) if need > limit => Err(Error::invalid(format!(
-            "that density needs about {vertices:.0} vertices, about {} at synthesis' peak, more than the {} budget ({source}); lower --scale, --texels-across or --vertices",
-            gib(need),
-            gib(limit)
-        ))),
+        Some((limit, source)) if need > limit => Err(Error::too_large(
+            format!(
+                "that density needs about {vertices:.0} vertices, about {} at synthesis' peak, more than the {} budget ({source})",
+                gib(need),
+                gib(limit)
+            ),
+            crate::Remedy::LowerDensity,
+        )),
         _ => Ok(()),
     }
 }
@@ -126,9 +129,10 @@ pub fn build_pyramid_cached(
     let texel = density.texel(mesh)?;
     let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * (texel as f64).powi(2));
     if estimate > MAX_VERTICES as f64 {
-        return Err(Error::invalid(format!(
-            "that density needs about {estimate:.0} vertices (the limit is {MAX_VERTICES}); lower --scale, --texels-across or --vertices"
-        )));
+        return Err(Error::too_large(
+            format!("that density needs about {estimate:.0} vertices (the limit is {MAX_VERTICES})"),
+            crate::Remedy::LowerDensity,
+        ));
     }
     check_memory(estimate)?;
     let mut seconds = [0.0; 3];

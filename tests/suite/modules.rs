@@ -167,3 +167,45 @@ fn the_cycle_check_sees_a_cycle_through_super_and_crate_paths() {
     assert_eq!(graph["a/d.rs"], ["a/b.rs".to_string(), "a/c.rs".to_string()].into_iter().collect());
     assert_eq!(cycles(&graph), [vec!["a/b.rs".to_string(), "a/c.rs".to_string()]].into_iter().collect());
 }
+
+/// `file:line` of every flag name (`--` and a lowercase letter) in the library's files:
+/// everything outside `cli/` and the binary's `main.rs`, comments included, clap
+/// attributes (`#[arg(…)]`, `#[command(…)]`) left out. The library names parameters in its
+/// own words; only the command line knows its flags (`cli/hints.rs`).
+fn flag_names(files: &BTreeMap<String, String>) -> Vec<String> {
+    let mut found = Vec::new();
+    for (file, text) in files.iter().filter(|(f, _)| !f.starts_with("cli/") && *f != "main.rs") {
+        for (n, line) in text.lines().enumerate() {
+            let attribute = ["#[arg(", "#[command("].iter().any(|a| line.trim_start().starts_with(a));
+            let flag = line
+                .match_indices("--")
+                .any(|(at, _)| line[at + 2..].chars().next().is_some_and(|c| c.is_ascii_lowercase()));
+            if flag && !attribute {
+                found.push(format!("{file}:{}: {}", n + 1, line.trim()));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn library_files_name_no_command_line_flag() {
+    let found = flag_names(&sources());
+    assert!(found.is_empty(), "flag names outside src/cli (say the parameter, see error::Param): {found:#?}");
+}
+
+#[test]
+fn the_flag_check_sees_flags_in_messages_and_comments_but_not_in_the_cli() {
+    let files: BTreeMap<String, String> = [
+        ("a.rs", "// lower --scale\nlet x = 1; // a -- b, --7\n"),
+        ("b.rs", "Err(Error::invalid(\"use --crop\"))\n#[arg(long = \"x\", help = \"--y\")]\n"),
+        ("cli/c.rs", "usage(\"--plane\")\n"),
+    ]
+    .iter()
+    .map(|(f, t)| (f.to_string(), t.to_string()))
+    .collect();
+    assert_eq!(
+        flag_names(&files),
+        ["a.rs:1: // lower --scale", "b.rs:1: Err(Error::invalid(\"use --crop\"))"]
+    );
+}

@@ -32,7 +32,7 @@ pub enum MaterialKind {
 }
 
 impl MaterialKind {
-    /// Every kind with a one-line description, for `gen --list`.
+    /// Every kind with a one-line description, for listing them.
     pub const ALL: [(MaterialKind, &'static str); 3] = [
         (MaterialKind::Pebbles, "rounded stones on a sandy ground (Worley-like cells)"),
         (MaterialKind::Weave, "plain weave: interlaced red warp and beige weft threads"),

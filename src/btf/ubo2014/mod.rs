@@ -193,7 +193,8 @@ impl BonnBtf {
         &self.rotations
     }
 
-    /// What `btfsynth info --json` prints about the file.
+    /// The file described as JSON: its kind, size, directions and factors (what the command
+    /// line's `info` prints as JSON).
     pub fn describe(&self) -> serde_json::Value {
         let file_bytes = self.bytes.size();
         let mut d = serde_json::json!({

@@ -112,8 +112,9 @@ pub fn colour_uniform(model: ColourModel, log_encoded: bool) -> Result<ColourUni
     let identity = ColourModel::Rgb.affine().expect("RGB is affine");
     let (m, t) = match model {
         ColourModel::Lab => {
-            return Err(Error::invalid(
-                "the sample's colour model 2 (CIE Lab) cannot be decoded on the GPU: view it with --upload images",
+            return Err(Error::unavailable(
+                "the sample's colour model 2 (CIE Lab) cannot be decoded on the GPU",
+                crate::Remedy::UploadImages,
             ))
         }
         ColourModel::LogYUv | ColourModel::LogYLogUv | ColourModel::LogYUvOverY => yuv,

@@ -11,7 +11,7 @@
 
 use crate::analysis::memory::gib;
 use crate::btf::source::{memory_budget, parse_size_env};
-use crate::{Error, Result};
+use crate::{Error, Remedy, Result};
 
 /// The environment variable that sets the GPU memory limit.
 pub const GPU_MEMORY_ENV: &str = "BTFSYNTH_GPU_MEMORY";
@@ -42,21 +42,24 @@ impl Estimate {
         self.items.iter().max_by_key(|(_, b)| *b)
     }
 
-    /// Fails with one line naming the total, the largest item and `advice` when the total
+    /// Fails with one line naming the total, the largest item and `remedy` when the total
     /// exceeds `limit` (bytes, and where that figure comes from); `gpu` names the adapter.
-    pub fn check(&self, gpu: &str, limit: Option<(u64, String)>, advice: &str) -> Result<()> {
+    pub fn check(&self, gpu: &str, limit: Option<(u64, String)>, remedy: Remedy) -> Result<()> {
         let Some((limit, source)) = limit else { return Ok(()) };
         if self.total() <= limit {
             return Ok(());
         }
         let (name, bytes) = self.largest().cloned().unwrap_or_default();
-        Err(Error::invalid(format!(
-            "showing this scene on {gpu} would need about {} of GPU memory ({name}: {}), more than its {} \
-             limit ({source}); {advice}",
-            gib(self.total()),
-            gib(bytes),
-            gib(limit)
-        )))
+        Err(Error::too_large(
+            format!(
+                "showing this scene on {gpu} would need about {} of GPU memory ({name}: {}), more than its {} \
+                 limit ({source})",
+                gib(self.total()),
+                gib(bytes),
+                gib(limit)
+            ),
+            remedy,
+        ))
     }
 }
 
@@ -98,12 +101,15 @@ mod tests {
         let mut e = Estimate::default();
         e.add("sample images as an atlas", 3 << 30);
         e.add("blends", 1 << 20);
-        assert!(e.check("gpu", Some((4 << 30, "x".into())), "advice").is_ok());
-        assert!(e.check("gpu", None, "advice").is_ok());
-        let message =
-            e.check("gpu", Some((1 << 30, "x".into())), "use --upload factors").unwrap_err().to_string();
+        assert!(e.check("gpu", Some((4 << 30, "x".into())), Remedy::UploadFactors).is_ok());
+        assert!(e.check("gpu", None, Remedy::UploadFactors).is_ok());
+        let refused = e.check("gpu", Some((1 << 30, "x".into())), Remedy::UploadFactors).unwrap_err();
+        assert!(matches!(refused, Error::TooLarge { remedy: Remedy::UploadFactors, .. }), "{refused:?}");
+        let message = refused.to_string();
         assert!(message.contains("3.0 GiB of GPU memory (sample images as an atlas: 3.0 GiB)"), "{message}");
-        assert!(message.contains("1.0 GiB limit (x); use --upload factors") && !message.contains('\n'));
+        assert!(
+            message.contains("1.0 GiB limit (x); upload the sample's factors") && !message.contains('\n')
+        );
     }
 
     #[test]

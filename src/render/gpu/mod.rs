@@ -116,10 +116,8 @@ impl GpuScene {
         let values = sample::plan(&sample, &gpu.device.limits(), formats.images)?;
         let rects = lighting.environment.as_ref().map(|_| ambient::patch_rects(&scene));
         let advice = match values {
-            sample::Values::Atlas { .. } if sample.factors().is_some() => {
-                "show the factors with --upload factors"
-            }
-            _ => "show a smaller sample or mesh, or a smaller --size",
+            sample::Values::Atlas { .. } if sample.factors().is_some() => crate::Remedy::UploadFactors,
+            _ => crate::Remedy::SmallerScene,
         };
         let estimate = sample::estimate(&scene, &values, (target, frame), rects.as_deref());
         estimate.check(&gpu.name(), memory::limit(gpu.adapter.get_info().device_type)?, advice)?;
@@ -190,12 +188,11 @@ impl GpuRenderer {
         let gpu = Gpu::headless()?;
         let max = gpu.device.limits().max_texture_dimension_2d;
         if size.0 > max || size.1 > max {
-            return Err(crate::Error::invalid(format!(
-                "--size {}x{}: {} renders at most {max}x{max}",
-                size.0,
-                size.1,
-                gpu.name()
-            )));
+            return Err(crate::Error::out_of_range(
+                crate::Param::FrameSize,
+                format!("{}x{}", size.0, size.1),
+                format!("{} renders at most {max}x{max}", gpu.name()),
+            ));
         }
         let inner = GpuScene::new(gpu, (scene, sample), (None, size), lighting)?;
         let (gpu, format) = (&inner.gpu, inner.target);

@@ -85,9 +85,11 @@ pub fn plan(sample: &GpuSample, limits: &wgpu::Limits, format: wgpu::TextureForm
     };
     match (sample.upload, sample.factors()) {
         (Upload::Images, _) | (Upload::Auto, None) => atlas(),
-        (Upload::Factors, None) => Err(Error::invalid(
-            "--upload factors: this analysis stores its sample as images, not factors (an analysis of a \
-             factorized .btf file stores factors)",
+        (Upload::Factors, None) => Err(Error::out_of_range(
+            crate::Param::Upload,
+            "factors",
+            "this analysis stores its sample as images, not factors (an analysis of a factorized .btf \
+             file stores factors)",
         )),
         (Upload::Factors, Some(f)) => from_factors(f),
         (Upload::Auto, Some(f)) => match atlas() {

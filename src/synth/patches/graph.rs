@@ -56,7 +56,7 @@ impl SurfaceGraph {
         let refuse = |m: String| {
             Error::format(
                 path,
-                format!("{m}; --method soler2002 maps the mesh as it is and does not repair it"),
+                format!("{m}; pattern mapping (soler2002) takes the mesh as it is and does not repair it"),
             )
         };
         // Coincident corners are one point.

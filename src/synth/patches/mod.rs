@@ -114,19 +114,19 @@ impl SolerParams {
     pub fn validate(&self) -> Result<()> {
         let positive = |v: f32| v.is_finite() && v > 0.0;
         if !positive(self.texels_per_unit) {
-            return Err(Error::invalid(format!("the scale must be positive, got {}", self.texels_per_unit)));
+            return Err(Error::out_of_range(crate::Param::Scale, self.texels_per_unit, "must be positive"));
         }
         if !(1..=90).contains(&self.rotations) {
-            return Err(Error::invalid(format!("--rotations {}: between 1 and 90", self.rotations)));
+            return Err(Error::out_of_range(crate::Param::Rotations, self.rotations, "between 1 and 90"));
         }
         if !positive(self.band) || self.band > 64.0 {
-            return Err(Error::invalid(format!("--band {}: between 0 and 64 texels", self.band)));
+            return Err(Error::out_of_range(crate::Param::Band, self.band, "between 0 and 64 texels"));
         }
         if !positive(self.max_flat_error) || !positive(self.max_fit_error) {
             return Err(Error::invalid("the flattening and fitting thresholds must be positive"));
         }
         if self.orientation.is_some_and(|d| !d.is_finite()) {
-            return Err(Error::invalid("--orientation: a finite angle in degrees"));
+            return Err(Error::out_of_range(crate::Param::PatchOrientation, "", "a finite angle in degrees"));
         }
         Ok(())
     }
@@ -202,18 +202,23 @@ pub fn map_mesh(
     let first_face = match params.first_face {
         None => None,
         Some(f) if f >= triangles.len() => {
-            return Err(Error::invalid(format!(
-                "--first-face {f}: {} has {} faces (0 to {})",
-                path.display(),
-                triangles.len(),
-                triangles.len().saturating_sub(1)
-            )))
+            return Err(Error::out_of_range(
+                crate::Param::FirstFace,
+                f,
+                format!(
+                    "{} has {} faces (0 to {})",
+                    path.display(),
+                    triangles.len(),
+                    triangles.len().saturating_sub(1)
+                ),
+            ))
         }
         Some(f) if graph.graph_face[f] == NONE => {
-            return Err(Error::invalid(format!(
-                "--first-face {f}: that face of {} has no area; choose another",
-                path.display()
-            )))
+            return Err(Error::out_of_range(
+                crate::Param::FirstFace,
+                f,
+                format!("that face of {} has no area; choose another", path.display()),
+            ))
         }
         Some(f) => Some(graph.graph_face[f]),
     };

@@ -1,9 +1,9 @@
-//! A directory of marchings kept between runs (`synth --marching-cache DIR`).
+//! A directory of marchings kept between runs (a directory the caller names, kept from run to run).
 //!
 //! The marching of a mesh level depends only on the level's positions, triangles and
 //! normals, the texel and the stencil, never on the texture direction. Each is stored in a
 //! file named by a 64-bit hash of exactly those inputs (and the format version), so a run
-//! with another `--orient` on the same mesh and density finds the marching of every level
+//! with another frame orientation on the same mesh and density finds the marching of every level
 //! and only recomputes the start points.
 //!
 //! A file is `MAGIC`, the format version, the key, the payload's length, the payload
