@@ -50,7 +50,7 @@ pub struct Coherence {
     shift_stamp: Vec<u32>,
     visit: u32,
     /// The candidates of the last [`Coherence::gather`], deduplicated, in gathering order.
-    pub out: Vec<u32>,
+    pub(crate) out: Vec<u32>,
 }
 
 impl Coherence {
