@@ -103,7 +103,7 @@ pub struct SampleInfo {
 /// Where the stack came from.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Source {
-    /// The stack's path as given to `analyze`.
+    /// The path the stack was read from, as given (`analyze`'s input).
     pub path: String,
     /// FNV-1a 64 of the pixels (f16 bits) and directions: detects a changed stack.
     pub fingerprint: String,

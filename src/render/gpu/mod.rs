@@ -86,7 +86,7 @@ impl GpuLighting {
 pub struct GpuScene {
     /// The device and queue everything is uploaded to.
     pub gpu: Gpu,
-    /// The render pipelines and their bind groups.
+    /// The shadow, depth, surface and vertex-colour pipelines with their buffers and bindings.
     pub passes: Passes,
     /// The formats the camera passes draw into.
     pub target: TargetFormat,
