@@ -55,6 +55,8 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod analysis;
 pub mod btf;
 pub mod error;

@@ -121,6 +121,7 @@ impl LowRankStack {
         self.coords.nrows()
     }
 
+    /// Whether the stack holds no images.
     pub fn is_empty(&self) -> bool {
         self.coords.nrows() == 0
     }

@@ -11,7 +11,9 @@ use std::path::Path;
 
 /// Every image of the analysed stack with its directions.
 pub struct SampleImages {
+    /// Width of every image in texels.
     pub width: usize,
+    /// Height of every image in texels.
     pub height: usize,
     values: Values,
     /// Per image: θ_light, φ_light, θ_view, φ_view in degrees.
@@ -31,9 +33,11 @@ enum Values {
 pub struct Probe {
     /// `head-on`, `light-45` or `grazing` (the default set), or the asked-for angles.
     pub name: String,
+    /// Index of the probe's image in the stack.
     pub image: usize,
     /// θ, φ of the view and the light in degrees, as measured.
     pub view: [f32; 2],
+    /// θ, φ of the light in degrees, as measured.
     pub light: [f32; 2],
 }
 
@@ -85,10 +89,12 @@ impl SampleImages {
         Ok(SampleImages { width: w, height: h, values: Values::Pixels(images.data), directions })
     }
 
+    /// Number of images.
     pub fn len(&self) -> usize {
         self.directions.len()
     }
 
+    /// Whether there are no images.
     pub fn is_empty(&self) -> bool {
         self.directions.is_empty()
     }

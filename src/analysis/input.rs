@@ -73,9 +73,11 @@ pub struct BasisInfo {
 
 /// An analysis and the sample it stores.
 pub struct Analysed {
+    /// The texton pyramid and its kNN lists.
     pub analysis: Analysis,
     /// The sample as factors (`None`: the decoded images of [`Input::Images`] are stored).
     pub factors: Option<FactoredStack>,
+    /// How the analysis saw the images (`None`: decoded images).
     pub basis: Option<BasisInfo>,
 }
 
@@ -98,6 +100,7 @@ impl Input {
         }
     }
 
+    /// Whether the input holds no images.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -29,8 +29,11 @@ pub const COARSE_CANDIDATES: usize = 100;
 /// A texton label per pixel, row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TextonMap {
+    /// Columns of the map.
     pub width: usize,
+    /// Rows of the map.
     pub height: usize,
+    /// `width × height` labels, row `y` at `y * width`; a label is a texton index.
     pub labels: Vec<u16>,
 }
 
@@ -38,8 +41,11 @@ pub struct TextonMap {
 /// (`textons × textons`, row-major, from [`super::gamma::distance_table`]).
 #[derive(Clone, Copy)]
 pub struct Level<'a> {
+    /// The level's texton map.
     pub map: &'a TextonMap,
+    /// `textons × textons` squared texton distances ‖tᵢ − tⱼ‖², row-major.
     pub distances: &'a [f32],
+    /// Number of rows (and columns) of `distances`.
     pub textons: usize,
 }
 
@@ -89,6 +95,7 @@ pub struct PyramidSearch<'a> {
 }
 
 impl<'a> PyramidSearch<'a> {
+    /// A search over `pyramid` (finest level first) with `params`; lists are made on demand.
     pub fn new(pyramid: &'a [Level<'a>], params: KnnParams) -> Self {
         PyramidSearch { pyramid, params, candidate_lists: vec![None; pyramid.len()] }
     }

@@ -16,7 +16,9 @@ use std::path::Path;
 /// One stage's predicted peak.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stage {
+    /// What the stage does, for messages (e.g. "decoding the images").
     pub name: String,
+    /// Predicted peak of the stage in bytes.
     pub bytes: u64,
 }
 

@@ -11,7 +11,9 @@ use std::path::Path;
 pub trait Element: Copy + Default {
     /// NumPy's dtype descriptor, e.g. `<f4`.
     const DESCR: &'static str;
+    /// Appends the element's little-endian bytes to `out`.
     fn put(self, out: &mut Vec<u8>);
+    /// The element from its little-endian bytes (exactly `size_of::<Self>()` of them).
     fn get(bytes: &[u8]) -> Self;
     /// False for NaN and ±∞ (never for integers): no array btfsynth stores holds them, so
     /// a file that does is damaged.
@@ -50,7 +52,9 @@ element!(f16, "<f2", f16::is_finite);
 /// An n-dimensional array read from a `.npy` file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NpyArray<T> {
+    /// Length of each axis, outermost first (C order).
     pub shape: Vec<usize>,
+    /// The values in C order (last axis fastest), as many as the product of `shape`.
     pub data: Vec<T>,
 }
 

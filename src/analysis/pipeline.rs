@@ -60,6 +60,7 @@ impl Default for AnalysisParams {
 /// One analysed pyramid level.
 #[derive(Clone, Debug)]
 pub struct AnalysisLevel {
+    /// Texton map, Γ, embedding and appearance vectors of the level.
     pub textons: LevelTextons,
     /// `[pixels][k]` single-level kNN lists, the pixel itself first.
     pub knn: Vec<u32>,
@@ -71,22 +72,30 @@ pub struct AnalysisLevel {
 /// Wall time per stage, summed over levels.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Timings {
+    /// Choosing the representative images.
     pub selection: Duration,
+    /// Filtering the images (texton features and appearance vectors).
     pub filtering: Duration,
+    /// Clustering the features into textons.
     pub kmeans: Duration,
+    /// Forming Γ and its spectral embedding.
     pub gamma: Duration,
+    /// Building the kNN lists.
     pub knn: Duration,
+    /// The whole analysis, from start to end.
     pub total: Duration,
 }
 
 /// The result of [`analyze`].
 #[derive(Clone, Debug)]
 pub struct Analysis {
+    /// The parameters the analysis ran with.
     pub params: AnalysisParams,
     /// Indices of the representative images, increasing.
     pub selected: Vec<usize>,
     /// Finest level first.
     pub levels: Vec<AnalysisLevel>,
+    /// Wall time per stage.
     pub timings: Timings,
 }
 

@@ -27,7 +27,9 @@ pub const KEPT_ENERGY: f64 = 0.999;
 /// The features' centred coordinates on their leading directions (pixels × kept), and the
 /// share of the centred features' energy those coordinates hold.
 pub struct Reduced {
+    /// pixels × kept: each pixel's centred features on the leading directions.
     pub coords: Array2<f32>,
+    /// Share (0–1) of the centred features' energy that `coords` holds.
     pub energy: f64,
 }
 

@@ -42,17 +42,25 @@ pub const MANIFEST: &str = "analysis.json";
 pub struct Manifest {
     /// Always "btfsynth-analysis".
     pub format: String,
+    /// Version of this layout; 1 so far.
     pub version: u32,
+    /// The stack that was analysed.
     pub source: Source,
+    /// The analysis parameters as run.
     pub params: Params,
     /// The filter bank: name and one entry per filter.
     pub filters: serde_json::Value,
     /// Indices of the representative images.
     pub selected: Vec<usize>,
+    /// Number of images in the sample.
     pub images: usize,
+    /// Width of the sample in texels (after the crop).
     pub width: usize,
+    /// Height of the sample in texels (after the crop).
     pub height: usize,
+    /// Length of every kNN list, the pixel itself included.
     pub k: usize,
+    /// Per pyramid level, finest first: sizes and file names.
     pub levels: Vec<LevelInfo>,
     /// Material maps stored beside the sample (see [`crate::maps`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -79,36 +87,52 @@ pub struct SampleInfo {
     /// The PCA colour model's mean and transform (model 3 only).
     #[serde(default)]
     pub colour_mean: [f32; 3],
+    /// The PCA colour model's transform (model 3 only).
     #[serde(default)]
     pub colour_transform: [[f32; 3]; 3],
+    /// Whether the decoded values are log(x + ε), undone as exp(x) − ε.
     pub log_encoded: bool,
+    /// File name of the image factors, relative to the analysis directory.
     pub image_factors: String,
+    /// File name of the texel factors, relative to the analysis directory.
     pub texel_factors: String,
+    /// File name of the per-image scales, relative to the analysis directory.
     pub scale: String,
 }
 
 /// Where the stack came from.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Source {
+    /// The path the stack was read from, as given (`analyze`'s input).
     pub path: String,
     /// FNV-1a 64 of the pixels (f16 bits) and directions: detects a changed stack.
     pub fingerprint: String,
+    /// The rectangle of the stack that was analysed, `[x, y, width, height]` in texels
+    /// (`None`: all of it).
     pub crop: Option<[u32; 4]>,
 }
 
 /// The parameters as run.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Params {
+    /// Textons asked for at the finest level (see [`super::pipeline::AnalysisParams`]).
     pub textons: usize,
+    /// Representative images asked for.
     pub selected: usize,
+    /// Pyramid levels.
     pub levels: usize,
+    /// Length of every kNN list, the pixel itself included.
     pub k: usize,
+    /// Side in texels of the square neighbourhood of the kNN search, odd.
     pub neighborhood: usize,
+    /// Whether the sample was analysed as wrapping around.
     pub tileable: bool,
+    /// Most principal images filtered per level.
     pub basis_rank: usize,
     /// Absent in analyses written before appearance vectors existed.
     #[serde(default)]
     pub appearance_dims: usize,
+    /// Seed of every random choice.
     pub seed: u64,
 }
 
@@ -123,28 +147,40 @@ fn is_one(v: &f64) -> bool {
 /// One level's sizes and files.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LevelInfo {
+    /// Width of the level in texels.
     pub width: usize,
+    /// Height of the level in texels.
     pub height: usize,
     /// Textons, not counting the default texton (which is index `textons`).
     pub textons: usize,
+    /// Columns of the level's spectral embedding.
     pub embedding_dims: usize,
+    /// Principal images the level's filter responses were computed from.
     pub basis_rank: usize,
+    /// Share (0–1) of the level's centred image energy those principal images hold.
     pub basis_energy: f64,
+    /// Lloyd iterations the level's clustering ran.
     pub kmeans_iterations: usize,
     /// Share of the features' energy the clustering saw (absent: 1, the full features;
     /// see [`super::reduce`]).
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub feature_energy: f64,
+    /// The level's array files.
     pub files: LevelFiles,
 }
 
 /// File names of one level's arrays, relative to the analysis directory.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LevelFiles {
+    /// `level{L}_textons.npy`: the texton map.
     pub textons: String,
+    /// `level{L}_gamma.npy`: Γ, default texton last.
     pub gamma: String,
+    /// `level{L}_embedding.npy`: the spectral embedding of Γ.
     pub embedding: String,
+    /// `level{L}_knn.npy`: the single-level kNN lists.
     pub knn: String,
+    /// `level{L}_knn2.npy`: the two-level kNN lists (`None` on the coarsest level).
     pub knn_two_level: Option<String>,
     /// Absent in analyses written before appearance vectors existed.
     #[serde(default)]

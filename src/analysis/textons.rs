@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 /// texton: the mean of all appearance vectors.
 #[derive(Clone, Debug)]
 pub struct LevelTextons {
+    /// The level's texton map: a label per pixel.
     pub map: TextonMap,
     /// (textons + 1)², dot products of the appearance vectors.
     pub gamma: Array2<f32>,
@@ -29,6 +30,7 @@ pub struct LevelTextons {
     pub textons: usize,
     /// Principal images the responses were computed from, and the variance they hold.
     pub basis_rank: usize,
+    /// Share (0–1) of the centred images' energy those principal images hold.
     pub basis_energy: f64,
     /// Lloyd iterations the clustering ran.
     pub kmeans_iterations: usize,
@@ -42,8 +44,11 @@ pub struct LevelTextons {
 /// Wall time per stage.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StageTimes {
+    /// Computing the filter responses and appearance vectors.
     pub filtering: Duration,
+    /// Clustering the features into textons.
     pub kmeans: Duration,
+    /// Forming Γ and its spectral embedding.
     pub gamma: Duration,
 }
 
@@ -56,7 +61,10 @@ pub struct TextonOptions {
     pub basis_rank: usize,
     /// Dimensions of the per-pixel appearance vectors.
     pub appearance_dims: usize,
+    /// How the filters treat the sample's border.
     pub padding: Padding,
+    /// Seed of every random choice of the level (basis, appearance vectors, reduction,
+    /// k-means).
     pub seed: u64,
 }
 

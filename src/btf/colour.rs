@@ -26,7 +26,12 @@ pub enum ColourModel {
     /// 2: CIE L*a*b* (D50, as MATLAB's `makecform('lab2srgb')`).
     Lab,
     /// 3: a PCA basis: rgb = v · transform + mean.
-    Pca { mean: [f32; 3], transform: [[f32; 3]; 3] },
+    Pca {
+        /// Linear RGB added after the transform.
+        mean: [f32; 3],
+        /// Row c holds the RGB that channel c contributes per unit.
+        transform: [[f32; 3]; 3],
+    },
     /// 4: YCoCg.
     YCoCg,
     /// 5: "spectral": a sum and ratios.

@@ -40,6 +40,7 @@ pub struct ToBtfOptions {
     pub scalar: Scalar,
     /// Write the rotation block (`!DFMF08FCR`), with these rotations.
     pub rotation_block: bool,
+    /// The frame rotations the block holds (usually none).
     pub rotations: Vec<Rotation>,
     /// Seed of the randomized SVD.
     pub seed: u64,
@@ -48,10 +49,15 @@ pub struct ToBtfOptions {
 /// What [`to_btf`] did.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ToBtfReport {
+    /// Images in the stack (views × lights).
     pub images: usize,
+    /// Distinct view directions.
     pub views: usize,
+    /// Distinct light directions.
     pub lights: usize,
+    /// Width of the images in texels.
     pub width: usize,
+    /// Height of the images in texels.
     pub height: usize,
     /// Components per channel.
     pub components: Vec<usize>,
@@ -61,6 +67,7 @@ pub struct ToBtfReport {
     /// ‖original − decoded‖ / ‖original‖ over all linear RGB values, decoding the file
     /// as written (so it includes the scalar precision).
     pub relative_error: f64,
+    /// Size of the written file in bytes.
     pub file_bytes: u64,
 }
 

@@ -13,7 +13,9 @@ use std::fmt;
 /// azimuth φ from the tangent s towards t, both in degrees.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Direction {
+    /// Polar angle from the normal in degrees, 0–90.
     pub theta: f32,
+    /// Azimuth from the tangent s towards t in degrees, -360–360.
     pub phi: f32,
 }
 
@@ -67,11 +69,14 @@ impl fmt::Display for Direction {
 /// The light and view directions under which one image was taken.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirectionPair {
+    /// Direction towards the light.
     pub light: Direction,
+    /// Direction towards the camera.
     pub view: Direction,
 }
 
 impl DirectionPair {
+    /// True if both lights and both views name the same directions (see [`Direction::same_as`]).
     pub fn same_as(&self, other: &DirectionPair) -> bool {
         self.light.same_as(&other.light) && self.view.same_as(&other.view)
     }

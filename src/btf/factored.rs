@@ -90,22 +90,27 @@ impl FactoredStack {
         })
     }
 
+    /// Width of the images in texels.
     pub fn width(&self) -> usize {
         self.width
     }
 
+    /// Height of the images in texels.
     pub fn height(&self) -> usize {
         self.height
     }
 
+    /// Number of images.
     pub fn len(&self) -> usize {
         self.pairs.len()
     }
 
+    /// Whether the stack holds no images.
     pub fn is_empty(&self) -> bool {
         self.pairs.is_empty()
     }
 
+    /// The light and view directions of every image, in image order.
     pub fn pairs(&self) -> &[DirectionPair] {
         &self.pairs
     }

@@ -26,8 +26,12 @@ const POWER_ITERATIONS: usize = 2;
 /// A stack as a view × light grid: image `grid[l + lights · v]` of the stack is taken under
 /// light `l` and view `v`.
 pub struct Grid {
+    /// The distinct view directions, indexed by `v` in `order`.
     pub views: Vec<Direction>,
+    /// The distinct light directions, indexed by `l` in `order`.
     pub lights: Vec<Direction>,
+    /// `views × lights` stack image indices: image `order[l + lights · v]` is taken under
+    /// light `l` and view `v`.
     pub order: Vec<usize>,
 }
 
@@ -59,7 +63,9 @@ pub fn grid(btf: &Btf) -> Result<Grid> {
 
 /// The result of [`factorize`].
 pub struct Factorization {
+    /// The view × light arrangement of the stack's images that the factors follow.
     pub grid: Grid,
+    /// The factors of each colour channel, in the colour model's space.
     pub channels: Vec<ChannelFactors>,
     /// Per channel: ‖M − U·SxVᵀ‖ / ‖M‖ in the colour model's space, from the discarded
     /// singular values.

@@ -11,8 +11,11 @@ use std::path::Path;
 /// A linear RGB image, row-major, RGB interleaved.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// `width × height × 3` values, row `y` at `3 · y · width`.
     pub data: Vec<f16>,
 }
 

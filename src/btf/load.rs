@@ -40,6 +40,7 @@ struct Entry {
 /// own notes (generator, seed, …) and ignored here.
 #[derive(serde::Serialize, serde::Deserialize)]
 pub struct Manifest {
+    /// Every image of the stack with its directions.
     pub images: Vec<ManifestImage>,
     /// Where the stack came from (the generator and its parameters); informational.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -50,8 +51,11 @@ pub struct Manifest {
 #[derive(serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ManifestImage {
+    /// The image file, relative to the manifest.
     pub file: String,
+    /// θ, φ of the light in degrees.
     pub light: [f32; 2],
+    /// θ, φ of the view in degrees.
     pub view: [f32; 2],
 }
 

@@ -31,9 +31,13 @@ use half::f16;
 /// A rectangle of the sample, in pixels: origin `x, y`, size `w × h`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
+    /// Left edge in pixels.
     pub x: u32,
+    /// Top edge in pixels.
     pub y: u32,
+    /// Width in pixels (positive).
     pub width: u32,
+    /// Height in pixels (positive).
     pub height: u32,
 }
 
@@ -95,10 +99,12 @@ impl Btf {
         Ok(Btf { width, height, pairs, pixels })
     }
 
+    /// Width of every image in texels.
     pub fn width(&self) -> usize {
         self.width
     }
 
+    /// Height of every image in texels.
     pub fn height(&self) -> usize {
         self.height
     }

@@ -8,8 +8,11 @@
 /// An RGB picture, row-major, sRGB-encoded values in [0, 1].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Picture {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// `width × height` pixels, row `y` at `y * width`.
     pub rgb: Vec<[f32; 3]>,
 }
 

@@ -42,8 +42,10 @@ pub struct Evaluation {
 /// The image-space measures under one view/light pair.
 #[derive(Clone, Debug, Serialize)]
 pub struct ProbeQuality {
+    /// The view/light pair the measures are taken under.
     #[serde(flatten)]
     pub probe: Probe,
+    /// The image-space measures of the result against the sample under that pair.
     #[serde(flatten)]
     pub quality: PictureQuality,
     /// Tileable planes (synthesized with `tiles`, [`crate::synth::plane::synthesize_plane`]) only:

@@ -23,8 +23,6 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
-#![warn(missing_docs)]
-
 pub mod bvh;
 pub mod field;
 mod field_hierarchy;

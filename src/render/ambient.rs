@@ -210,9 +210,13 @@ impl CellVisibility {
 /// wrapped: a patch may reach past the sample's edge, where the lookup wraps or clamps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TexelRect {
+    /// Column of the first texel (may be negative or past the sample's width).
     pub x: i32,
+    /// Row of the first texel (may be negative or past the sample's height).
     pub y: i32,
+    /// Width in texels.
     pub width: u32,
+    /// Height in texels.
     pub height: u32,
 }
 

@@ -30,7 +30,9 @@ pub const EXACT_RADIANS: f32 = 1e-5;
 /// to 1. Unused entries have weight 0.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Nearest4 {
+    /// The directions' indices in the [`DirectionIndex`].
     pub index: [u32; 4],
+    /// Their weights, 0–1, summing to 1.
     pub weight: [f32; 4],
 }
 

@@ -10,30 +10,44 @@ use glam::{Mat4, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
     /// A pinhole with this vertical field of view, in degrees.
-    Perspective { fov_y_deg: f32 },
+    Perspective {
+        /// Vertical field of view in degrees (the orbit camera's is [`FOV_Y_DEG`]).
+        fov_y_deg: f32,
+    },
     /// Parallel rays; the image is `2 × half_height` model units tall.
-    Orthographic { half_height: f32 },
+    Orthographic {
+        /// Half the image's height in model units; the width follows the aspect ratio.
+        half_height: f32,
+    },
 }
 
 /// A camera: where it is, what it looks at, and the image it makes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Position of the camera in world (model) units.
     pub eye: Vec3,
+    /// The point the camera looks at, in world units.
     pub target: Vec3,
     /// Roughly up in the image (made orthogonal to the view).
     pub up: Vec3,
+    /// Perspective or orthographic, with its field of view or height.
     pub projection: Projection,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Depth range the scene occupies (for the GPU's depth buffer).
     pub near: f32,
+    /// Far end of that depth range, in world units from the eye.
     pub far: f32,
 }
 
 /// One frame to render: a camera and a directional light (unit vector towards the light).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shot {
+    /// The camera that takes the frame.
     pub camera: Camera,
+    /// Unit world vector towards the directional light.
     pub light: Vec3,
 }
 
@@ -152,13 +166,17 @@ pub enum Orbit {
 /// A sequence of shots around a model.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShotPlan {
+    /// Image width and height in pixels (default 512²).
     pub size: (u32, u32),
+    /// Number of shots (default 1); an orbit turns 360°/frames per frame.
     pub frames: usize,
     /// Light direction (θ, φ) in degrees at frame 0.
     pub light: (f32, f32),
     /// Camera direction (θ, φ) in degrees at frame 0.
     pub view: (f32, f32),
+    /// What circles the model across the frames (default none).
     pub orbit: Orbit,
+    /// Parallel projection instead of perspective (default false).
     pub orthographic: bool,
 }
 

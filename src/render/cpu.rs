@@ -14,6 +14,7 @@ use rayon::prelude::*;
 /// What the CPU renderer does besides shading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
+    /// How points between vertices are shaded (per vertex or per pixel).
     pub mode: Mode,
     /// Trace shadow rays (per sample in pixel mode, per vertex in vertex mode), for the
     /// directional light and for the environment's light cells.

@@ -17,7 +17,9 @@ use std::path::Path;
 /// for a light beyond the dome, see [`Material::light_weights`]) and to 0 when not.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blend16 {
+    /// Indices of the blended images in the stack.
     pub image: [u32; 16],
+    /// The weight of each of those images; unused entries have weight 0.
     pub weight: [f32; 16],
 }
 

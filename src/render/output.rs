@@ -12,8 +12,11 @@ use std::path::{Path, PathBuf};
 /// premultiplied by it (as EXR expects).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// `width × height × 4` values, RGBA interleaved, rows top to bottom.
     pub rgba: Vec<f32>,
 }
 

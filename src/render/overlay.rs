@@ -71,8 +71,11 @@ fn glyph(c: char) -> [u8; 7] {
 /// top to bottom.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TextImage {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// `width × height × 4` bytes, RGBA interleaved, rows top to bottom.
     pub rgba: Vec<u8>,
 }
 

@@ -29,6 +29,8 @@ pub enum Mode {
 pub struct Scene {
     /// The mesh, with vertex normals.
     pub mesh: Mesh,
+    /// One tangent frame per vertex (s, t, n): the sample's u grows along s, and its v
+    /// (rows, running down) against t.
     pub frames: Frames,
     /// Per vertex, the sample coordinate (u along columns, v along rows) in texels.
     pub uv: Vec<Vec2>,
@@ -44,6 +46,8 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The scene of a synthesized surface map: its mesh, frames, sample coordinates, texton
+    /// labels and texel size (not texture-mapped).
     pub fn from_surface_map(map: SurfaceMap) -> Scene {
         let uv = map.state.uv.iter().map(|&[u, v]| Vec2::new(u as f32, v as f32)).collect();
         Scene {

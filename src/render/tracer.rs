@@ -24,7 +24,9 @@ pub struct Tracer {
 /// A primary ray's first hit.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
+    /// Index of the triangle hit (a face of the mesh).
     pub triangle: usize,
+    /// The hit point in world units.
     pub position: Vec3,
     /// Barycentric weights of the triangle's three corners.
     pub bary: Vec3,
@@ -33,6 +35,7 @@ pub struct Hit {
 }
 
 impl Tracer {
+    /// Builds the BVH of `mesh`'s triangles.
     pub fn new(mesh: &Mesh) -> Tracer {
         let triangles: Vec<Triangle> = (0..mesh.face_count())
             .map(|f| {

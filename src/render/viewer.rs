@@ -35,7 +35,9 @@ const OVERLAY_PERIOD: f32 = 0.5;
 /// What the window starts with.
 #[derive(Clone, Debug)]
 pub struct ViewerOptions {
+    /// How points between vertices are shaded at first (the M key switches).
     pub mode: Mode,
+    /// The directional light, environment and shadows the window starts with.
     pub lighting: GpuLighting,
     /// Where the S key saves frames (`view-0000.png`, `view-0001.png`, …).
     pub save_dir: PathBuf,

@@ -13,7 +13,9 @@ use super::round::{RoundSample, RoundStencil};
 /// "coloured" points). Unknown points are left out of every comparison.
 #[derive(Clone, Debug, Default)]
 pub struct RoundQuery {
+    /// `points × dims` values, point by point (unknown points' values are not read).
     pub values: Vec<f32>,
+    /// Per point, whether it is synthesized and so compared.
     pub known: Vec<bool>,
 }
 

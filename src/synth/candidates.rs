@@ -9,7 +9,10 @@ use super::state::State;
 pub enum Search {
     /// The union of the kNN lists (first `k` entries) at the forward-shifted coordinates of
     /// the patch's vertices.
-    KCoherence { k: usize },
+    KCoherence {
+        /// Entries read from each kNN list (capped by the lists' length).
+        k: usize,
+    },
     /// Every pixel of the sample whose neighbourhood lies inside it (Table 2's full search).
     Full,
 }
@@ -46,10 +49,12 @@ pub struct Coherence {
     /// stamped them: candidates that continue a copy rather than start a new one.
     shift_stamp: Vec<u32>,
     visit: u32,
-    pub out: Vec<u32>,
+    /// The candidates of the last [`Coherence::gather`], deduplicated, in gathering order.
+    pub(crate) out: Vec<u32>,
 }
 
 impl Coherence {
+    /// A gatherer for candidates among `sample`'s texels, reused across a pass's visits.
     pub fn new(sample: &SampleLevel) -> Self {
         let n = sample.width * sample.height;
         Coherence { stamp: vec![u32::MAX; n], shift_stamp: vec![u32::MAX; n], visit: 0, out: Vec::new() }

@@ -23,7 +23,9 @@ pub struct PassStats {
 /// How a pass runs.
 #[derive(Clone, Copy, Debug)]
 pub struct PassPlan {
+    /// How the candidates are formed.
     pub search: Search,
+    /// How one of them is chosen.
     pub select: Select,
     /// Distances of candidates that start a new copy (not a patch vertex's forward shift)
     /// are multiplied by 1 + this (Ashikhmin's and Hertzmann's coherence preference).

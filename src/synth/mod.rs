@@ -79,9 +79,13 @@ impl Default for SynthParams {
 /// What happened on one level.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct LevelReport {
+    /// Pyramid level, 0 the finest.
     pub level: usize,
+    /// Output vertices on the level (pixels, for a plane).
     pub vertices: usize,
+    /// Passes run on the level, inheriting from the coarser level counted as one.
     pub passes: usize,
+    /// Wall time spent on the level, in seconds.
     pub seconds: f64,
     /// Mean candidate-set size of the last pass.
     pub mean_candidates: f64,

@@ -128,7 +128,12 @@ pub enum Schedule<'a> {
     /// One after the other in this order, each seeing the choices made before it.
     Order(Vec<u32>),
     /// In sub-passes by colour, each in parallel ([`run_interleaved_pass`]).
-    Interleaved { colouring: &'a Colouring, seed: u64 },
+    Interleaved {
+        /// The sub-passes: one per colour.
+        colouring: &'a Colouring,
+        /// Seeds each vertex's random draw together with the vertex index.
+        seed: u64,
+    },
 }
 
 /// One pass under `schedule`, with matchers from `make`.

@@ -31,11 +31,15 @@ pub const MANIFEST: &str = "plane.json";
 
 /// A synthesized plane.
 pub struct PlaneResult {
+    /// Width of the plane in sample texels.
     pub width: usize,
+    /// Height of the plane in sample texels.
     pub height: usize,
     /// The plane was synthesized on a wrapping grid: it repeats without a seam.
     pub tiles: bool,
+    /// The finest level's texton labels and sample coordinates, one per pixel, row-major.
     pub state: State,
+    /// What happened on each level, coarsest first.
     pub reports: Vec<LevelReport>,
 }
 

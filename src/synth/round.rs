@@ -79,7 +79,9 @@ impl RoundStencil {
 /// from the reference direction. Whole steps only permute the points (exactly).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StartPoint {
+    /// Whole angular steps, 0 to [`POINTS_PER_CIRCLE`] − 1.
     pub step: usize,
+    /// The rest, a fraction of one step in [0, 1).
     pub fraction: f32,
 }
 
@@ -115,6 +117,7 @@ struct Arc {
 /// the flattened patch, in a reference frame independent of the texture direction.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceMarching {
+    /// The circles each vertex's neighbourhood is read on.
     pub stencil: RoundStencil,
     /// Distance between circles on the surface.
     pub texel: f32,
@@ -311,7 +314,9 @@ impl LeReader<'_> {
 /// its texture directions (redone per direction, cheaply).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MarchedLevel {
+    /// The circles of every vertex through its flattened patch.
     pub marching: SurfaceMarching,
+    /// Per vertex, the start point of its texture direction.
     pub starts: Vec<StartPoint>,
     /// Where the marching came from and how long that took (for reports).
     pub origin: MarchingOrigin,
@@ -424,9 +429,13 @@ fn edge_crossings(a: Vec2, b: Vec2, radius: f32, out: &mut Vec<f32>) {
 /// per texel.
 #[derive(Clone, Debug)]
 pub struct RoundSample {
+    /// The circles each texel's neighbourhood is read on.
     pub stencil: RoundStencil,
+    /// Width of the sample level in texels.
     pub width: usize,
+    /// Height of the sample level in texels.
     pub height: usize,
+    /// Values per point: the resampled map's dimensions.
     pub dims: usize,
     values: Vec<f32>,
 }

@@ -24,9 +24,21 @@ pub enum RoundTarget<'a> {
     /// A regular `width × height` grid (plane mode) with the texture's x along the grid's:
     /// the points resampled from the grid's cells, each cut into two triangles, on demand.
     /// Points past the edge are not compared unless the grid `wraps`.
-    Grid { width: usize, height: usize, wraps: bool },
+    Grid {
+        /// Columns of the grid.
+        width: usize,
+        /// Rows of the grid.
+        height: usize,
+        /// Whether points past one edge continue from the opposite edge.
+        wraps: bool,
+    },
     /// A mesh: read from its marching at each vertex's start point.
-    Mesh { marching: &'a SurfaceMarching, starts: &'a [StartPoint] },
+    Mesh {
+        /// The circles of every vertex through its flattened patch.
+        marching: &'a SurfaceMarching,
+        /// Per vertex, where its circles start (its texture direction).
+        starts: &'a [StartPoint],
+    },
 }
 
 impl RoundTarget<'_> {

@@ -11,18 +11,23 @@ use std::path::Path;
 /// One level of the analysed sample.
 #[derive(Clone, Debug)]
 pub struct SampleLevel {
+    /// Width of the level in texels.
     pub width: usize,
+    /// Height of the level in texels.
     pub height: usize,
     /// Texton label per pixel, row-major.
     pub labels: Vec<u16>,
     /// Γ, `textons × textons` row-major; the last texton is the default texton.
     pub gamma: Vec<f32>,
+    /// Rows of Γ: the level's textons plus the default texton.
     pub textons: usize,
     /// `[pixels][k]` kNN lists, the pixel itself first.
     pub knn: Vec<u32>,
     /// Lists by two-level neighbourhoods; absent on the coarsest analysed level.
     pub knn_two_level: Option<Vec<u32>>,
+    /// Length of every kNN list.
     pub k: usize,
+    /// Whether the sample wraps around (it was analysed as tileable).
     pub tileable: bool,
     /// Per-pixel appearance vectors, if the analysis has them (written since they exist).
     pub appearance: Option<AppearanceMap>,
@@ -37,6 +42,7 @@ pub struct SampleLevel {
 /// lookups never need a bounds check.
 #[derive(Clone, Debug)]
 pub struct AppearanceMap {
+    /// Values per texel.
     pub dims: usize,
     stride: usize,
     values: Vec<f32>,
@@ -104,7 +110,9 @@ impl AppearanceMap {
 /// The analysed sample: its levels, finest first, and the manifest they came from.
 #[derive(Clone, Debug)]
 pub struct Sample {
+    /// The levels of the sample, finest first.
     pub levels: Vec<SampleLevel>,
+    /// The analysis manifest the levels came from.
     pub manifest: Manifest,
 }
 

@@ -10,7 +10,10 @@ pub use crate::sentinel::OUTSIDE;
 /// patch has `vertices[0] == OUTSIDE`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Slot {
+    /// The three vertices whose textons the pixel blends; `vertices[0]` is [`OUTSIDE`]
+    /// outside the patch.
     pub vertices: [u32; 3],
+    /// Their barycentric weights (summing to 1, or all 0 for [`Slot::NONE`]).
     pub weights: [f32; 3],
 }
 

@@ -63,15 +63,22 @@ impl std::fmt::Display for Density {
 
 /// One level of the synthesis mesh pyramid.
 pub struct MeshLevel {
+    /// The level's remeshed surface.
     pub mesh: Mesh,
+    /// One tangent frame per vertex.
     pub frames: Frames,
+    /// Size of one sample texel on this level in model units (also the remeshing's target
+    /// edge length).
     pub texel: f32,
+    /// Edge lengths of the remeshed surface.
     pub edges: EdgeLengthStats,
 }
 
 /// The synthesis meshes, finest first, with their engine-side levels.
 pub struct SurfacePyramid {
+    /// The meshes, finest first.
     pub levels: Vec<MeshLevel>,
+    /// The engine's levels, one per mesh level, finest first.
     pub targets: Vec<TargetLevel>,
     /// Seconds spent remeshing, framing and building templates.
     pub seconds: [f64; 3],
@@ -268,8 +275,11 @@ pub(crate) fn analysis_paths(analysis: &Path, ply: &Path) -> (PathBuf, Option<Pa
 
 /// A surface map read back from a PLY written by [`write_surface_ply`].
 pub struct SurfaceMap {
+    /// The mesh as stored.
     pub mesh: Mesh,
+    /// One tangent frame per vertex, as stored.
     pub frames: Frames,
+    /// Per vertex, the texton label and sample coordinate.
     pub state: State,
     /// Texel size in model units (from the header).
     pub texel: f32,

@@ -9,7 +9,9 @@ pub use super::slot::{Slot, OUTSIDE};
 /// coordinates jump across patch seams, so they are taken from one vertex, never averaged.)
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParentLink {
+    /// The coarse level's vertex the coordinate is copied from.
     pub vertex: u32,
+    /// Offset added to twice that vertex's coordinate, in this level's texels.
     pub offset: [f32; 2],
 }
 
@@ -25,14 +27,25 @@ pub enum Neighbourhoods {
     /// grid itself around each vertex. Template pixels past the grid's edge are not compared,
     /// unless the grid `wraps` (a tileable output): then its left edge continues its right
     /// edge and its top its bottom, so the result repeats without a seam.
-    Grid { width: usize, height: usize, template: usize, wraps: bool },
+    Grid {
+        /// Columns of the grid.
+        width: usize,
+        /// Rows of the grid.
+        height: usize,
+        /// Side of the square template in pixels (odd).
+        template: usize,
+        /// Whether the grid's edges wrap (a tileable output).
+        wraps: bool,
+    },
     /// A mesh: resampled from flattened patches and stored.
     Mesh {
+        /// Side of the square template in texels (odd).
         template: usize,
         /// `vertices × template²` slots.
         slots: Vec<Slot>,
         /// CSR: the patch vertices of v are `shifts[shift_start[v]..shift_start[v + 1]]`.
         shift_start: Vec<u32>,
+        /// Every vertex's patch vertices with their offsets, vertex after vertex.
         shifts: Vec<Shift>,
     },
 }
@@ -109,9 +122,11 @@ fn grid_window(
 /// neighbourhoods.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TargetLevel {
+    /// Number of vertices (pixels, in plane mode) on the level.
     pub vertices: usize,
     /// Side of the template (odd).
     pub template: usize,
+    /// The templates of the level's vertices, or the grid they come from.
     pub neighbourhoods: Neighbourhoods,
     /// Per vertex, where it sits on the next coarser level (empty on the coarsest level).
     pub parents: Vec<ParentLink>,

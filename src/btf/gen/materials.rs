@@ -58,6 +58,7 @@ pub struct Pebbles {
 }
 
 impl Pebbles {
+    /// Pebbles tiling a `size`-texel square (cells of about 11 texels), laid out by `seed`.
     pub fn new(size: usize, seed: u64) -> Self {
         let period = size as f32;
         let cells = count(period, 11.0, 2, 1);
@@ -170,6 +171,8 @@ pub struct Weave {
 }
 
 impl Weave {
+    /// A weave tiling a `size`-texel square (an even number of threads, about 8 texels
+    /// apart), laid out by `seed`.
     pub fn new(size: usize, seed: u64) -> Self {
         // An even thread count keeps the over/under alternation periodic.
         let threads = count(size as f32, 8.0, 2, 2);
@@ -241,6 +244,8 @@ pub struct Bricks {
 }
 
 impl Bricks {
+    /// Bricks tiling a `size`-texel square (an even number of courses, about 9 texels
+    /// high), laid out by `seed`.
     pub fn new(size: usize, seed: u64) -> Self {
         let period = size as f32;
         // Even rows keep the half-brick offset periodic.

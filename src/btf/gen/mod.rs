@@ -39,6 +39,7 @@ impl MaterialKind {
         (MaterialKind::Bricks, "running-bond bricks with bevelled edges and mortar grooves"),
     ];
 
+    /// The kind's name on the command line and in manifests (`pebbles`, `weave`, `bricks`).
     pub fn name(self) -> &'static str {
         match self {
             MaterialKind::Pebbles => "pebbles",

@@ -26,9 +26,13 @@ pub struct HeightField<'m> {
 /// What a primary ray sees: shading inputs at the first hit.
 #[derive(Clone, Copy)]
 pub struct Hit {
+    /// The hit point: x, y in the sample window, z the height, all in texels.
     pub position: Vec3,
+    /// Unit surface normal at the hit.
     pub normal: Vec3,
+    /// Linear diffuse albedo (RGB) at the hit.
     pub albedo: Vec3,
+    /// Strength of the glossy (Blinn-Phong) lobe at the hit.
     pub gloss: f32,
 }
 

@@ -14,7 +14,12 @@ use std::sync::{Arc, Mutex};
 /// held in memory (tests, and files small enough to not matter).
 pub enum Bytes {
     /// A file on disk; reads seek under the lock.
-    File { file: Mutex<File>, len: u64 },
+    File {
+        /// The open file, locked for each seek and read.
+        file: Mutex<File>,
+        /// The file's length in bytes, from its metadata at opening.
+        len: u64,
+    },
     /// Bytes already in memory.
     Memory(Arc<[u8]>),
 }
@@ -127,18 +132,22 @@ impl<'a> Cursor<'a> {
         Ok(buf)
     }
 
+    /// One byte; `what` names the field in errors.
     pub fn u8(&mut self, what: &str) -> Result<u8> {
         Ok(self.array::<1>(what)?[0])
     }
 
+    /// A little-endian u32; `what` names the field in errors.
     pub fn u32(&mut self, what: &str) -> Result<u32> {
         Ok(u32::from_le_bytes(self.array(what)?))
     }
 
+    /// A little-endian i32; `what` names the field in errors.
     pub fn i32(&mut self, what: &str) -> Result<i32> {
         Ok(i32::from_le_bytes(self.array(what)?))
     }
 
+    /// A little-endian f32; `what` names the field in errors.
     pub fn f32(&mut self, what: &str) -> Result<f32> {
         Ok(f32::from_le_bytes(self.array(what)?))
     }

@@ -16,8 +16,11 @@ use std::path::Path;
 /// How a matrix stores its scalars.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Scalar {
+    /// IEEE half precision, 2 bytes.
     F16,
+    /// IEEE single precision, 4 bytes.
     F32,
+    /// IEEE double precision, 8 bytes.
     F64,
 }
 

@@ -13,7 +13,11 @@ pub enum Variant {
     Dfmf,
     /// Full matrix factorization: one SVD of all channels; `extended` files carry a
     /// header version with the dynamic-range flag and an optional height map.
-    Fmf { extended: bool },
+    Fmf {
+        /// Whether the signature is `!FMF12FCER` (header version, dynamic-range flag,
+        /// optional height map) rather than `!FMF06FC`.
+        extended: bool,
+    },
     /// Per-view factorization (not read yet).
     Pvf,
     /// Bidirectional image file: raw ABRDFs in chunks of scan lines.
@@ -66,9 +70,13 @@ pub fn candidate_signatures(start: &[u8]) -> Vec<(&'static str, Variant)> {
 pub struct Meta {
     /// Header version (2 adds the cosine flag, 3 the XML, 4 the channel names).
     pub version: u32,
+    /// The measurement setup's description (free text).
     pub measurement_setup: String,
+    /// The camera sensor's description (free text).
     pub image_sensor: String,
+    /// The light source's description (free text).
     pub light_source: String,
+    /// Resolution of the sample in pixels per millimetre, as recorded.
     pub pixels_per_mm: f32,
     /// Scale factors of R, G and B recorded by the measurement (informational).
     pub rgb_scale: [f32; 3],

@@ -160,10 +160,12 @@ impl BonnBtf {
         &self.path
     }
 
+    /// Width of the images in texels.
     pub fn width(&self) -> usize {
         self.width
     }
 
+    /// Height of the images in texels.
     pub fn height(&self) -> usize {
         self.height
     }

@@ -41,9 +41,13 @@ pub struct DfmfOptions {
 
 /// The stack's geometry: `views` directions, each with the same `lights`, and the size.
 pub struct DfmfGeometry<'a> {
+    /// The view directions, in the file's order.
     pub views: &'a [Direction],
+    /// The light directions, shared by every view, in the file's order.
     pub lights: &'a [Direction],
+    /// Width of the images in texels.
     pub width: usize,
+    /// Height of the images in texels.
     pub height: usize,
 }
 

@@ -11,11 +11,17 @@ use half::f16;
 /// per layer, image i in layer `i / per_layer`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AtlasLayout {
+    /// Width of one image tile in texels.
     pub width: u32,
+    /// Height of one image tile in texels.
     pub height: u32,
+    /// Tiles per row of a layer.
     pub tiles_x: u32,
+    /// Rows of tiles per layer.
     pub tiles_y: u32,
+    /// Tiles per layer: `tiles_x × tiles_y`.
     pub per_layer: u32,
+    /// Layers of the texture array.
     pub layers: u32,
 }
 

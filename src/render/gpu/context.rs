@@ -11,8 +11,11 @@ libegl-mesa0 libgl1-mesa-dri";
 
 /// A device and its queue, and the name of the adapter they run on.
 pub struct Gpu {
+    /// The device that owns every buffer, texture and pipeline of the scene.
     pub device: wgpu::Device,
+    /// The device's command queue.
     pub queue: wgpu::Queue,
+    /// The adapter the device runs on (its name goes into reports).
     pub adapter: wgpu::Adapter,
     /// The first error wgpu reported outside an error scope (instead of panicking).
     errors: Arc<Mutex<Option<String>>>,

@@ -41,8 +41,11 @@ pub const ATLAS_LIMIT: u64 = 256 << 20;
 /// of the image table is its groups in the same order, then one vec4 whose x is its scale.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FactorLayout {
+    /// Width of the sample in texels.
     pub width: u32,
+    /// Height of the sample in texels.
     pub height: u32,
+    /// Number of images (rows of the image table).
     pub images: u32,
     /// Groups of four components per channel.
     pub groups: [u32; 3],
@@ -101,7 +104,9 @@ impl FactorLayout {
 /// in w).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ColourUniform {
+    /// x: the colour model's number, y: 1 when log-encoded; z, w unused (0).
     pub model: [u32; 4],
+    /// Row c: the decoded channels' weights in xyz and the offset in w, for RGB channel c.
     pub rows: [[f32; 4]; 3],
 }
 

@@ -23,6 +23,7 @@ pub const DEFAULT_GPU_MEMORY: u64 = 4 << 30;
 /// What a scene will upload, by item, in bytes.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Estimate {
+    /// Each item's name and its size in bytes, in the order added.
     pub items: Vec<(String, u64)>,
 }
 

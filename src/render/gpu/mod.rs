@@ -84,11 +84,17 @@ impl GpuLighting {
 
 /// The scene on one GPU: its passes, formats and the environment's shading.
 pub struct GpuScene {
+    /// The device and queue everything is uploaded to.
     pub gpu: Gpu,
+    /// The shadow, depth, surface and vertex-colour pipelines with their buffers and bindings.
     pub passes: Passes,
+    /// The formats the camera passes draw into.
     pub target: TargetFormat,
+    /// The scene as the CPU holds it (mesh, frames, sample coordinates).
     pub scene: Scene,
+    /// The sample, whose blends and environment shading are computed on the CPU.
     pub material: Material,
+    /// The directional light, environment and shadows the frames are lit with.
     pub lighting: GpuLighting,
     /// Which of the sample's values went to the GPU.
     pub values: sample::Values,

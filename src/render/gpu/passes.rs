@@ -50,9 +50,11 @@ struct Uniforms {
 /// What a frame shows besides the shot.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameSettings {
+    /// How points between vertices are shaded (per vertex or per pixel).
     pub mode: Mode,
     /// Colour each texton label instead of fetching texels.
     pub false_colour: bool,
+    /// Whether the directional light casts shadow-map shadows.
     pub shadows: bool,
     /// Strength of the directional light (0: off).
     pub sun: f32,

@@ -17,8 +17,11 @@ pub const SHADOW_MAP_SIZE: u32 = 2048;
 /// pixel (4 with multisampling, resolved into the colour target).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TargetFormat {
+    /// Format of the colour target.
     pub colour: wgpu::TextureFormat,
+    /// Format of the depth buffer.
     pub depth: wgpu::TextureFormat,
+    /// Samples per pixel: 1, or 4 with multisampling.
     pub samples: u32,
 }
 

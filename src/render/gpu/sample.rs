@@ -15,10 +15,12 @@ use crate::{Error, Result};
 /// The sample a GPU scene shows: the material (blends and the environment's shading are
 /// computed on the CPU from it) and, where the analysis stores them, its factors.
 pub struct GpuSample {
+    /// The sample as the CPU renderer holds it: its images (or factors) and directions.
     pub material: Material,
     /// The factors of a material that was decoded when opened (a factored material keeps
     /// its own, [`Material::factors`]).
     pub factors: Option<FactoredStack>,
+    /// Whether its images or its factors go to the GPU.
     pub upload: Upload,
 }
 
@@ -38,9 +40,19 @@ impl GpuSample {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Values {
     /// Every image, tiled into a texture array of `format`.
-    Atlas { layout: AtlasLayout, format: wgpu::TextureFormat },
+    Atlas {
+        /// Where each image lies in the texture array.
+        layout: AtlasLayout,
+        /// The texture array's texel format.
+        format: wgpu::TextureFormat,
+    },
     /// The factors and the colour model.
-    Factors { layout: FactorLayout, colour: ColourUniform },
+    Factors {
+        /// How the texel factors and the image table lie.
+        layout: FactorLayout,
+        /// The colour model's decoding, as the shader reads it.
+        colour: ColourUniform,
+    },
 }
 
 impl Values {

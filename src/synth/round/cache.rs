@@ -52,7 +52,9 @@ impl std::fmt::Display for MarchingSource {
 /// or marching, and storing).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct MarchingOrigin {
+    /// Whether the marching was computed, read from the cache or recomputed.
     pub source: MarchingSource,
+    /// Seconds spent hashing, reading or marching, and storing.
     pub seconds: f64,
 }
 
