@@ -51,6 +51,7 @@ pub struct Flattening {
 }
 
 impl Flattening {
+    /// Flattens every cluster of `h` on `graph`: its control polygon, and its chart.
     pub fn new(graph: &SurfaceGraph, h: &Hierarchy) -> Flattening {
         let polygon: Vec<Option<Vec<Vec2>>> =
             (0..h.clusters.len()).into_par_iter().map(|c| control_polygon(graph, h, c as u32)).collect();

@@ -37,6 +37,7 @@ pub enum ColourSpace {
 }
 
 impl ColourSpace {
+    /// The colour space called `name` (`lab`, `hsv`, `rgb`, `appearance`); an error lists them.
     pub fn parse(name: &str) -> Result<ColourSpace> {
         match name {
             "lab" => Ok(ColourSpace::Lab),
@@ -92,9 +93,13 @@ fn lab([r, g, b]: [f32; 3]) -> [f32; 3] {
 /// The sample in the fitting space: `channels` values per texel, standardised.
 #[derive(Clone, Debug)]
 pub struct FitImage {
+    /// Width in texels.
     pub width: usize,
+    /// Height in texels.
     pub height: usize,
+    /// Values per texel.
     pub channels: usize,
+    /// Whether fits may wrap around the sample's edges.
     pub tileable: bool,
     /// `[y][x][c]`.
     values: Vec<f32>,
@@ -190,7 +195,9 @@ impl FitImage {
 /// whether the pixel is in the support J.
 #[derive(Clone, Debug)]
 pub struct Mask {
+    /// Frame width in pixels.
     pub width: usize,
+    /// Frame height in pixels.
     pub height: usize,
     /// `[c][y][x]`, zero outside the support.
     pub values: Vec<f32>,
@@ -234,6 +241,7 @@ struct Rotation {
 
 /// The sample's transforms at every rotation, and the plans to fit masks with.
 pub struct Fitter {
+    /// The sample in the fitting space.
     pub image: FitImage,
     nx: usize,
     ny: usize,

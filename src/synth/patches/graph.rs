@@ -40,9 +40,11 @@ pub struct SurfaceGraph {
     pub file_corner: Vec<[u8; 3]>,
     /// Per graph face, the face across edge k (corners k → k + 1), or `NONE`.
     pub across: Vec<[u32; 3]>,
-    /// Per graph face, its area and unit normal (zero for a zero-area face).
+    /// Per graph face, its area.
     pub area: Vec<f32>,
+    /// Per graph face, its unit normal (zero for a zero-area face).
     pub face_normal: Vec<Vec3>,
+    /// Per graph face, its centroid.
     pub centroid: Vec<Vec3>,
     /// Per graph vertex, whether it lies on the surface's boundary.
     pub on_boundary: Vec<bool>,

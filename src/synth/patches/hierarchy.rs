@@ -29,6 +29,7 @@ pub const BRANCHING: f64 = 4.0;
 /// One region of one level.
 #[derive(Clone, Debug)]
 pub struct Cluster {
+    /// Its level, 0 the coarsest.
     pub level: u32,
     /// The cluster of the level above, or `NONE` on level 0.
     pub parent: u32,
@@ -65,7 +66,9 @@ impl Cluster {
 /// each face.
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
+    /// Every cluster of every level.
     pub clusters: Vec<Cluster>,
+    /// Per level, coarsest first, its clusters (indices into `clusters`).
     pub levels: Vec<Vec<u32>>,
     /// `owner[l][f]`: the cluster of level l holding graph face f.
     pub owner: Vec<Vec<u32>>,

@@ -135,6 +135,7 @@ impl SolerParams {
 /// What happened on one level of the hierarchy.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct LevelReport {
+    /// The level, 0 the coarsest (the whole surface's clusters).
     pub level: usize,
     /// Clusters on the level.
     pub clusters: usize,
@@ -146,29 +147,35 @@ pub struct LevelReport {
     pub started: usize,
     /// Faces mapped on this level.
     pub faces: usize,
-    /// Given up: not a disc or without a simple control polygon / too distorted flattened /
-    /// larger than the sample allows / fitting error over the threshold / no textured
-    /// neighbour on a piece of the surface already started (left to the next level).
+    /// Given up, left to the next level: not a disc, or without a simple control polygon.
     pub not_disc: usize,
+    /// Given up: flattened with more distortion than the limit allows, or folded.
     pub distorted: usize,
+    /// Given up: larger than a sample that does not tile allows.
     pub too_large: usize,
+    /// Given up: its best fit's error was over the threshold.
     pub poor_fit: usize,
+    /// Given up: no textured neighbour on a piece of the surface already started.
     pub unreached: usize,
     /// Median output error of the level's fits (along shared edges, relaxed, as a fraction
     /// of two random texels'; NaN without fits).
     pub median_fit_error: f32,
+    /// Seconds the level took to map.
     pub seconds: f64,
 }
 
 /// The whole run.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Report {
+    /// Per level of the hierarchy, coarsest first.
     pub levels: Vec<LevelReport>,
     /// Seconds: hierarchy, flattening (polygons and coordinates), sample transforms, mapping.
     pub seconds: [f64; 4],
+    /// Faces of the mesh.
     pub faces: usize,
     /// Faces without area in the graph, given their neighbours' coordinates.
     pub carried_faces: usize,
+    /// Clusters in the whole hierarchy.
     pub clusters: usize,
 }
 
@@ -182,6 +189,7 @@ pub struct PatchMapping {
     pub cluster: Vec<u32>,
     /// Per file face, that cluster's level.
     pub level: Vec<u8>,
+    /// What each level did and how long it took.
     pub report: Report,
 }
 

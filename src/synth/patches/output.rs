@@ -32,10 +32,13 @@ pub const UV_MAP_COMMENT: &str = "btfsynth uvmap";
 
 /// What a result records besides the mesh and its coordinates.
 pub struct Provenance<'a> {
+    /// The analysis the sample comes from.
     pub analysis: &'a Path,
+    /// The user's mesh the coordinates are on.
     pub mesh: &'a Path,
     /// Sample width and height in texels.
     pub sample: (usize, usize),
+    /// Whether the sample tiles (coordinates may pass its edges).
     pub tileable: bool,
     /// One sample texel in model units.
     pub texel: f32,
@@ -189,6 +192,7 @@ pub struct UvMap {
     pub sample: (usize, usize),
     /// One texel in model units.
     pub texel: f32,
+    /// Whether the sample tiles (coordinates may pass its edges).
     pub tileable: bool,
 }
 
