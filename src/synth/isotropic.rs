@@ -25,7 +25,7 @@ use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
 use super::recipe::Mask;
-use super::round::{bilinear, RoundStencil};
+use super::round::RoundStencil;
 use super::round_pass::RoundTarget;
 use super::sample::{AppearanceMap, SampleLevel};
 use super::slot::{Slot, OUTSIDE};
@@ -151,7 +151,11 @@ pub fn inherit(
             turns.set(v, turn);
             let [cx, cy] = coarse.uv[link.vertex as usize];
             let [dx, dy] = shear_offset(link.offset, turn);
-            sample.fold_into_candidates(2 * cx as i64 + dx.round() as i64, 2 * cy as i64 + dy.round() as i64, radius)
+            sample.fold_into_candidates(
+                2 * cx as i64 + dx.round() as i64,
+                2 * cy as i64 + dy.round() as i64,
+                radius,
+            )
         })
         .collect();
     let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
@@ -159,7 +163,7 @@ pub fn inherit(
 }
 
 /// The isotropic neighbourhoods of every texel of one sample level, unturned: `POINTS ×
-/// dims` values per texel, resampled bilinearly once per level.
+/// dims` values per texel, resampled once per level.
 pub struct IsoSample {
     dims: usize,
     values: Vec<f32>,
@@ -180,7 +184,7 @@ impl IsoSample {
         values.par_chunks_mut(POINTS * dims).enumerate().for_each(|(p, texel)| {
             let centre = Vec2::new((p % width) as f32, (p / width) as f32);
             for (point, offset) in texel.chunks_mut(dims).zip(&offsets) {
-                bilinear(map, centre + *offset, point);
+                halved_cell(map, centre + *offset, point);
             }
         });
         IsoSample { dims, values }
@@ -190,6 +194,26 @@ impl IsoSample {
     fn at(&self, q: u32) -> &[f32] {
         let n = POINTS * self.dims;
         &self.values[q as usize * n..(q as usize + 1) * n]
+    }
+}
+
+/// `map` at the real position `p`, linear in the half of its cell `p` lies in: the way a
+/// plane's points are read from its grid ([`RoundTarget::slots_at`]), so that an exact copy
+/// of the sample matches at distance 0 (bilinear reads would not).
+fn halved_cell(map: &AppearanceMap, p: Vec2, out: &mut [f32]) {
+    let snap = |v: f32| if (v - v.round()).abs() < 1e-4 { v.round() } else { v };
+    let (px, py) = (snap(p.x), snap(p.y));
+    let (x0, y0) = (px.floor(), py.floor());
+    let (u, w) = (px - x0, py - y0);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let corners = if u >= w {
+        [((0, 0), 1.0 - u), ((1, 0), u - w), ((1, 1), w)]
+    } else {
+        [((0, 0), 1.0 - w), ((0, 1), w - u), ((1, 1), u)]
+    };
+    out.fill(0.0);
+    for ((dx, dy), weight) in corners.into_iter().filter(|c| c.1 > 0.0) {
+        out.iter_mut().zip(map.at(x0 + dx, y0 + dy)).for_each(|(o, &v)| *o += weight * v);
     }
 }
 
@@ -388,4 +412,158 @@ pub fn isotropic_pass(
     let make = || IsoMatch::new(iso, sample, map);
     let plan = PassPlan { search, select, coherence_bias, mask };
     Ok(run_scheduled_pass(level, state, sample, make, &plan, schedule, rng))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Centroids of the faces of a triangular grid of unit edges around the up-pointing face
+    /// at the origin, with their adjacency distance (faces sharing a vertex are 1 apart),
+    /// in units of the spacing of edge-adjacent faces.
+    fn face_rings() -> Vec<(usize, f32)> {
+        let h = 3f32.sqrt() / 2.0;
+        let corners = |i: i32, j: i32, up: bool| -> [(i32, i32); 3] {
+            // Vertices as (2x, y/h) on the lattice, exact in integers.
+            let (x, y) = (2 * i + j, j);
+            if up {
+                [(x, y), (x + 2, y), (x + 1, y + 1)]
+            } else {
+                [(x + 2, y), (x + 3, y + 1), (x + 1, y + 1)]
+            }
+        };
+        let faces: Vec<[(i32, i32); 3]> = (-6..=6)
+            .flat_map(|j| (-6..=6).flat_map(move |i| [corners(i, j, true), corners(i, j, false)]))
+            .collect();
+        let centre = corners(0, 0, true);
+        let shares = |a: &[(i32, i32); 3], b: &[(i32, i32); 3]| a.iter().any(|p| b.contains(p));
+        let one: Vec<_> = faces.iter().filter(|f| **f != centre && shares(f, &centre)).collect();
+        let centroid = |f: &[(i32, i32); 3]| {
+            let (x, y) = f.iter().fold((0, 0), |(sx, sy), p| (sx + p.0, sy + p.1));
+            (x as f32 / 6.0, y as f32 * h / 3.0)
+        };
+        let c0 = centroid(&centre);
+        let spacing = 1.0 / 3f32.sqrt();
+        let dist = |f: &[(i32, i32); 3]| {
+            let c = centroid(f);
+            (c.0 - c0.0).hypot(c.1 - c0.1) / spacing
+        };
+        faces
+            .iter()
+            .filter(|f| **f != centre)
+            .filter_map(|f| {
+                if one.contains(&f) {
+                    Some((1, dist(f)))
+                } else if one.iter().any(|o| shares(o, f)) {
+                    Some((2, dist(f)))
+                } else {
+                    None
+                }
+            })
+            .collect()
+    }
+
+    /// The paper's stencil has 12 one-distant and 24 two-distant faces; BETA is Eq. 7's
+    /// mean over each, and the circles sit at radii in the rings' ratio.
+    #[test]
+    fn the_weights_are_eq_7_over_the_papers_rings() {
+        let rings = face_rings();
+        for (ring, n) in [(1, 12), (2, 24)] {
+            let d: Vec<f32> = rings.iter().filter(|r| r.0 == ring).map(|r| r.1).collect();
+            assert_eq!(d.len(), n, "ring {ring}");
+            let beta = d.iter().map(|d| (-0.5 * (d / 1.3).powi(2)).exp()).sum::<f32>() / n as f32;
+            assert!((beta - BETA[ring - 1]).abs() < 5e-4, "ring {ring}: β {beta}");
+        }
+        let mean = |ring| {
+            let d: Vec<f32> = rings.iter().filter(|r| r.0 == ring).map(|r| r.1).collect();
+            d.iter().sum::<f32>() / d.len() as f32
+        };
+        assert!((mean(2) / mean(1) - 2.0).abs() < 0.05, "{} {}", mean(1), mean(2));
+        assert_eq!(layout().len(), POINTS);
+    }
+
+    /// Where point p of the stencil sits, x along the texture and y down its rows.
+    fn position(p: usize) -> [f32; 2] {
+        let (c, turn) = layout()[p];
+        let (s, co) = (turn * TAU).sin_cos();
+        [c as f32 * co, -(c as f32) * s]
+    }
+
+    /// A turn by 60° moves every point onto the point `turned` names, and `turn_offset`
+    /// turns offsets the same way.
+    #[test]
+    fn a_turn_permutes_the_points() {
+        for turn in 0..TURNS {
+            let mut seen = [false; POINTS];
+            for p in 0..POINTS {
+                let (want, got) = (turn_offset(position(p), turn as u8), position(turned(p, turn)));
+                assert!((want[0] - got[0]).abs() < 1e-5 && (want[1] - got[1]).abs() < 1e-5, "{p}, {turn}");
+                seen[turned(p, turn)] = true;
+            }
+            assert!(seen.iter().all(|&s| s), "turn {turn} is a permutation");
+        }
+        assert_eq!(turned(0, 1), 2);
+        assert_eq!(turned(RING_POINTS[0], 1), RING_POINTS[0] + 4);
+    }
+
+    /// The shears map whole offsets one to one, each within a texel of the exact turn.
+    #[test]
+    fn sheared_turns_are_one_to_one_and_near_the_exact_turn() {
+        let offsets: Vec<[f32; 2]> =
+            (-6..=6).flat_map(|y| (-6..=6).map(move |x| [x as f32, y as f32])).collect();
+        for turn in 0..TURNS as u8 {
+            let mut images: Vec<[i32; 2]> =
+                offsets.iter().map(|&o| shear_offset(o, turn).map(|v| v as i32)).collect();
+            for (o, i) in offsets.iter().zip(&images) {
+                let exact = turn_offset(*o, turn);
+                let error = (exact[0] - i[0] as f32).hypot(exact[1] - i[1] as f32);
+                assert!(error < 1.0, "{o:?} turned {turn}: {i:?} against {exact:?}");
+            }
+            images.sort();
+            images.dedup();
+            assert_eq!(images.len(), offsets.len(), "turn {turn}");
+        }
+    }
+
+    /// A plane that is an exact copy of the sample matches its own texels at distance 0,
+    /// unturned (the sample is read as the grid is); an adjacent vertex's texel is passed
+    /// over while another candidate remains.
+    #[test]
+    fn an_exact_copy_matches_itself_unturned() {
+        let (w, h) = (24usize, 24usize);
+        let colours: Vec<f32> = (0..w * h)
+            .flat_map(|p| {
+                let (x, y) = ((p % w) as f32, (p / w) as f32);
+                [(x * 0.7).sin() + (y * 0.3).cos(), (x * 0.2 + y * 0.5).sin(), (x * y * 0.05).cos()]
+            })
+            .collect();
+        let map = AppearanceMap::new(w, h, 3, &colours, false);
+        let mut sample = crate::synth::engine::tests::periodic_sample(4);
+        (sample.width, sample.height, sample.tileable) = (w, h, false);
+        sample.labels = vec![0; w * h];
+        let turns = Turns::zeros(w * h);
+        let level = IsoLevel {
+            target: RoundTarget::Grid { width: w, height: h, wraps: false },
+            sample: IsoSample::new(&map, w, h),
+            turns: &turns,
+        };
+        let state = State {
+            labels: vec![0; w * h],
+            uv: (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect(),
+        };
+        let mut m = IsoMatch::new(&level, &sample, &map);
+        let v = 12 * w + 11;
+        m.prepare(v, &state, None);
+        let candidates: Vec<u32> = (0..(w * h) as u32)
+            .filter(|&q| sample.is_candidate((q as usize % w) as i64, (q as usize / w) as i64, REACH))
+            .collect();
+        assert_eq!(m.distance(v as u32, f32::INFINITY), (0.0, 0));
+        let choice = m.choose(&candidates, state.uv[v], |_| 1.0, || [0, 0]);
+        assert_eq!(choice.texel, Some([11, 12]));
+        assert_eq!(turns.get(v), 0);
+        // A neighbour's texel is passed over when another candidate exists.
+        m.follow(&[((v + 1) as u32, [1.0, 0.0])], &state, &mut Vec::new());
+        let choice = m.choose(&[v as u32 + 1, v as u32 + 2], state.uv[v], |_| 1.0, || [0, 0]);
+        assert_eq!(choice.texel, Some([13, 12]));
+    }
 }

@@ -36,8 +36,8 @@ pub use engine::{Select, State, VisitOrder};
 pub use recipe::{
     Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start, Stencil,
 };
-pub use sample::{Sample, SampleLevel};
 use sample::AppearanceMap;
+pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
 use crate::{Error, Result};
@@ -158,7 +158,8 @@ pub fn synthesize(
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
         let isotropic_level = recipe.passes.iter().any(|p| p.stencil == Stencil::Isotropic);
-        let turns = isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
+        let turns =
+            isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
         let iso = match &turns {
             Some(turns) => Some(isotropic_inputs(recipe, target, level_sample, turns)?),
             None => None,
@@ -227,7 +228,9 @@ fn isotropic_inputs<'a>(
         (_, Some(m)) if m.marching.stencil == isotropic::MARCHED => {
             RoundTarget::Mesh { marching: &m.marching, starts: &m.starts }
         }
-        (_, _) => return Err(Error::invalid("isotropic neighbourhoods on a mesh need its marching of 2 circles")),
+        (_, _) => {
+            return Err(Error::invalid("isotropic neighbourhoods on a mesh need its marching of 2 circles"))
+        }
     };
     let metric = recipe.passes.iter().find(|p| p.stencil == Stencil::Isotropic).map(|p| p.metric);
     let map = isotropic_map(metric.unwrap_or(MetricKind::Colour), sample)?;

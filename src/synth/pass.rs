@@ -36,7 +36,12 @@ pub trait VertexMatch {
     /// be turned against the sample ([`super::isotropic`]) turns each offset the way its
     /// vertex's copy runs. The others use the level's as they are.
     #[inline]
-    fn follow<'s>(&mut self, shifts: &'s [Shift], _state: &State, _scratch: &'s mut Vec<Shift>) -> &'s [Shift] {
+    fn follow<'s>(
+        &mut self,
+        shifts: &'s [Shift],
+        _state: &State,
+        _scratch: &'s mut Vec<Shift>,
+    ) -> &'s [Shift] {
         shifts
     }
 

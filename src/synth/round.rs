@@ -483,7 +483,7 @@ impl RoundSample {
 }
 
 /// `map` at the real position `p` by bilinear interpolation, into `out`.
-pub(crate) fn bilinear(map: &AppearanceMap, p: Vec2, out: &mut [f32]) {
+fn bilinear(map: &AppearanceMap, p: Vec2, out: &mut [f32]) {
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
     let (x0, y0) = (x0 as i64, y0 as i64);
