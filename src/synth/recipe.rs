@@ -721,6 +721,46 @@ mod tests {
         assert!(e.contains("circle"), "{e}");
     }
 
+    /// The isotropic stencil runs with colours or appearance vectors on one level, beside
+    /// round passes only of its own 2 circles; castellanos records it, and a recipe
+    /// recorded before it (no stencil field) still reads, as the square template.
+    #[test]
+    fn isotropic_passes_the_engine_cannot_run_are_refused() {
+        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
+            let mut p = Preset::castellanos();
+            edit(&mut p);
+            let e = Preset::from_json(&p.to_json().to_string()).expect_err(needle).to_string();
+            assert!(e.contains(needle), "{e}");
+        };
+        refused(&|p| p.finer.passes[0].metric = MetricKind::Gamma, "not Gamma");
+        refused(&|p| p.finer.passes[0].parent = ParentNeighbourhood::Narrow, "parent must be None");
+        refused(&|p| p.finer.passes[0].mask = Mask::Half, "mask Visited or Full");
+        let round = |circles| {
+            move |p: &mut Preset| {
+                p.finer.passes[1] = Pass {
+                    stencil: Stencil::Round { circles },
+                    metric: MetricKind::Adaptive,
+                    ..p.finer.passes[1]
+                }
+            }
+        };
+        refused(&round(3), "must have 2, not 3");
+        let mut mixed = Preset::castellanos();
+        round(2)(&mut mixed);
+        assert!(Preset::from_json(&mixed.to_json().to_string()).is_ok());
+        let json = Preset::castellanos().to_json();
+        assert_eq!(json["finer"]["passes"][0]["stencil"], "Isotropic");
+        assert_eq!(Preset::castellanos().round_stencil(), Some(isotropic::MARCHED));
+        let mut old = json.clone();
+        for level in ["coarsest", "finer"] {
+            old[level]["passes"].as_array_mut().unwrap().iter_mut().for_each(|p| {
+                p.as_object_mut().unwrap().remove("stencil");
+            });
+        }
+        let read = Preset::from_json(&old.to_string()).unwrap();
+        assert!(read.all_passes().all(|p| p.stencil == Stencil::Square));
+    }
+
     /// A candidate keeps circles + 1 texels of border: a 16² level that does not tile holds
     /// round neighbourhoods of up to 6 circles (15² texels), a tiling one any.
     #[test]
