@@ -13,6 +13,7 @@ pub mod candidates;
 pub mod constrained;
 pub mod engine;
 pub(crate) mod flatten;
+pub mod isotropic;
 pub(crate) mod metric;
 pub mod pass;
 pub mod patches;
@@ -35,6 +36,7 @@ pub use engine::{Select, State, VisitOrder};
 pub use recipe::{
     Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start, Stencil,
 };
+use sample::AppearanceMap;
 pub use sample::{Sample, SampleLevel};
 
 use crate::progress::Progress;
@@ -127,13 +129,24 @@ pub fn synthesize(
     let r = params.neighborhood / 2;
     let mut reports = Vec::new();
     let mut state: Option<State> = None;
+    // The coarser level's turns, where isotropic passes matched it.
+    let mut coarse_turns: Option<isotropic::Turns> = None;
     for l in (0..=coarsest).rev() {
         let started = Instant::now();
         let recipe = if l == coarsest { &preset.coarsest } else { &preset.finer };
         let (target, level_sample) = (&targets[l], &levels[l]);
         let coarse = state.take();
+        let mut turns = None;
         let mut current = match (recipe.start, &coarse) {
-            (Start::Inherit, Some(coarse)) => start::inherit(target, coarse, level_sample, r),
+            (Start::Inherit, Some(coarse)) => match coarse_turns.take() {
+                Some(coarse_turns) => {
+                    let (inherited, level_turns) =
+                        isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
+                    turns = Some(level_turns);
+                    inherited
+                }
+                None => start::inherit(target, coarse, level_sample, r),
+            },
             (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
             (Start::Patches { radius }, _) => {
                 // A patch narrower than the template is all seam: the templates that judge
@@ -152,6 +165,13 @@ pub fn synthesize(
         };
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
+        let isotropic_level = recipe.passes.iter().any(|p| p.stencil == Stencil::Isotropic);
+        let turns =
+            isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
+        let iso = match &turns {
+            Some(turns) => Some(isotropic_inputs(recipe, target, level_sample, turns)?),
+            None => None,
+        };
         let interleaved = recipe.passes.iter().any(|p| p.order == VisitOrder::Interleaved);
         let colouring = interleaved.then(|| Colouring::of(target)).flatten();
         for p in &recipe.passes {
@@ -166,13 +186,22 @@ pub fn synthesize(
                     &mut rng,
                 )),
             };
-            let level = LevelInputs { targets, levels, l, coarse: coarse.as_ref(), rounds: rounds.as_ref() };
+            let level = LevelInputs {
+                targets,
+                levels,
+                l,
+                coarse: coarse.as_ref(),
+                rounds: rounds.as_ref(),
+                iso: iso.as_ref(),
+            };
             stats = run_pass(p, &level, &mut current, params, &schedule, &mut rng)?;
             progress.advance(1);
         }
         let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
         reports.push(report(l, target, passes, started.elapsed(), stats));
         state = Some(current);
+        drop(iso);
+        coarse_turns = turns;
     }
     progress.finish();
     Ok((state.expect("at least one level"), reports))
@@ -187,6 +216,44 @@ struct LevelInputs<'a> {
     coarse: Option<&'a State>,
     /// The level's round neighbourhoods and the sample's, when a pass matches them.
     rounds: Option<&'a (RoundTarget<'a>, RoundSample)>,
+    /// The level's isotropic neighbourhoods, when a pass matches them.
+    iso: Option<&'a isotropic::IsoLevel<'a>>,
+}
+
+/// What a level's isotropic passes compare: the grid's points or the mesh level's marching,
+/// the sample level's neighbourhoods (of the map the first isotropic pass matches), and
+/// every vertex's turn.
+fn isotropic_inputs<'a>(
+    recipe: &LevelRecipe,
+    target: &'a TargetLevel,
+    sample: &SampleLevel,
+    turns: &'a isotropic::Turns,
+) -> Result<isotropic::IsoLevel<'a>> {
+    let round = match (&target.neighbourhoods, &target.round) {
+        (&target::Neighbourhoods::Grid { width, height, wraps, .. }, _) => {
+            RoundTarget::Grid { width, height, wraps }
+        }
+        (_, Some(m)) if m.marching.stencil == isotropic::MARCHED => {
+            RoundTarget::Mesh { marching: &m.marching, starts: &m.starts }
+        }
+        (_, _) => {
+            return Err(Error::invalid("isotropic neighbourhoods on a mesh need its marching of 2 circles"))
+        }
+    };
+    let metric = recipe.passes.iter().find(|p| p.stencil == Stencil::Isotropic).map(|p| p.metric);
+    let map = isotropic_map(metric.unwrap_or(MetricKind::Colour), sample)?;
+    let sample = isotropic::IsoSample::new(map, sample.width, sample.height);
+    Ok(isotropic::IsoLevel { target: round, sample, turns })
+}
+
+/// The map an isotropic pass under `metric` compares.
+fn isotropic_map(metric: MetricKind, sample: &SampleLevel) -> Result<&AppearanceMap> {
+    let map = match metric {
+        MetricKind::Colour => sample.colour.as_ref(),
+        MetricKind::Appearance => sample.appearance.as_ref(),
+        _ => None,
+    };
+    map.ok_or_else(|| Error::invalid(format!("an isotropic pass needs the {metric:?} map of the sample")))
 }
 
 /// The round neighbourhoods of `stencil` (the recipe's, [`Preset::round_stencil`]) a
@@ -229,6 +296,14 @@ fn run_pass(
     order: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
+    if p.stencil == Stencil::Isotropic {
+        let iso = inputs.iso.expect("built for every level with an isotropic pass");
+        let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
+        let map = isotropic_map(p.metric, sample)?;
+        let search = capped(pass_search(p, params.search), sample);
+        let how = (search, p.mask, p.select, p.coherence_bias);
+        return isotropic::isotropic_pass(target, iso, state, sample, map, how, order, rng);
+    }
     Ok(match p.metric {
         MetricKind::Gamma => {
             run_pass_with(p, inputs, state, params, order, rng, |s, t| GammaMetric { sample: s, template: t })

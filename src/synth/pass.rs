@@ -31,6 +31,20 @@ pub trait VertexMatch {
     /// visited so far in the pass.
     fn prepare(&mut self, v: usize, state: &State, known: Option<&[bool]>);
 
+    /// The forward shifts candidates are gathered from, given the level's (after
+    /// [`prepare`](VertexMatch::prepare), with the same `state`): a part whose copies may
+    /// be turned against the sample ([`super::isotropic`]) turns each offset the way its
+    /// vertex's copy runs. The others use the level's as they are.
+    #[inline]
+    fn follow<'s>(
+        &mut self,
+        shifts: &'s [Shift],
+        _state: &State,
+        _scratch: &'s mut Vec<Shift>,
+    ) -> &'s [Shift] {
+        shifts
+    }
+
     /// Picks among `candidates` (texel indices y·w + x) for the vertex now at `current`,
     /// each distance scaled by `factor` (selection and coherence). `draw` gives a random
     /// texel where nothing can be judged.
@@ -172,11 +186,13 @@ struct VisitScratch {
     coherence: Coherence,
     shifts: Vec<Shift>,
     masked: Vec<Shift>,
+    followed: Vec<Shift>,
 }
 
 impl VisitScratch {
     fn new(sample: &SampleLevel) -> Self {
-        VisitScratch { coherence: Coherence::new(sample), shifts: Vec::new(), masked: Vec::new() }
+        let (shifts, masked, followed) = Default::default();
+        VisitScratch { coherence: Coherence::new(sample), shifts, masked, followed }
     }
 }
 
@@ -205,8 +221,9 @@ impl<'a> PassInputs<'a> {
         draw: impl FnOnce() -> [i32; 2],
     ) -> Choice {
         matcher.prepare(v, state, known);
-        let VisitScratch { coherence, shifts, masked } = scratch;
+        let VisitScratch { coherence, shifts, masked, followed } = scratch;
         let shift_list = masked_shifts(self.level.shifts_of(v, shifts), self.plan.mask, masked);
+        let shift_list = matcher.follow(shift_list, state, followed);
         // Gathered under a full search too: the forward shifts tell which candidates
         // continue a neighbour's copy, for the coherence bias.
         coherence.gather(shift_list, known, state, self.sample, (self.k, self.reach, matcher.two_level()));

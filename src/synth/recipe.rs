@@ -5,6 +5,7 @@
 //! `synth` records the whole recipe in its outputs, so a result says how it was made.
 
 use super::candidates::Search;
+use super::isotropic;
 use super::round::RoundStencil;
 use super::sample::{AppearanceMap, SampleLevel};
 use crate::{Error, Result};
@@ -68,6 +69,13 @@ pub enum Stencil {
     /// reach); 1 to [`MAX_CIRCLES`], and each candidate keeps a border of `circles + 1`
     /// texels, which the coarsest sample level in use must hold unless it tiles.
     Round { circles: usize },
+    /// Castellanos and Williams' isotropic neighbourhood (§3.12, [`super::isotropic`]): 12
+    /// points one texel from the vertex and 24 two texels away, centre excluded, weighted
+    /// by proximity (Eq. 7), and compared with the sample's neighbourhood turned by 0°, 60°
+    /// and 120°, the least distance counting. Matched by the `Colour` and `Appearance`
+    /// metrics, on one level (no parent neighbourhood); mesh levels are marched for it as
+    /// for round neighbourhoods of 2 circles.
+    Isotropic,
 }
 
 /// Order in which a pass visits the vertices.
@@ -326,10 +334,15 @@ impl Preset {
     /// coordinate form of copying the four Laplacian children (Algorithm 2) and adding them
     /// to the projected coarser level.
     ///
-    /// Departures (docs/castellanos.md): the square template of `SynthParams::neighborhood`
-    /// in place of the triangular 2-distant stencil, without the paper's proximity weights and three
-    /// rotations; the exhaustive search on the coarsest level only, k-coherence candidates on
-    /// the finer ones (the paper's exhaustive search there needs its kd-trees, §6); the
+    /// The neighbourhood is the paper's isotropic one ([`Stencil::Isotropic`]): two rings of
+    /// 12 and 24 points, proximity weights and the least distance over three 60° turns of
+    /// the sample's neighbourhood, so a striped sample gives an isotropic result.
+    ///
+    /// Departures (docs/castellanos.md): the stencil's points on circles of the rings' mean
+    /// radii, resampled from the square sample grid, in place of the triangular grid's
+    /// faces; the exhaustive search on the coarsest level only, k-coherence candidates (which
+    /// follow each neighbour's turn) on the finer ones (the paper's exhaustive search there
+    /// needs its kd-trees, §6); the
     /// inversion's blend across seams is not formed (a vertex starts from its inherited
     /// texel's colour, not from the projected colours of its neighbours' parents); and a
     /// coherence bias of 1, which the paper has not: without it 1.02% of adjacent pairs copy
@@ -338,7 +351,7 @@ impl Preset {
     pub fn castellanos() -> Self {
         let pass = |candidates| Pass {
             order: VisitOrder::Random,
-            stencil: Stencil::Square,
+            stencil: Stencil::Isotropic,
             mask: Mask::Full,
             parent: ParentNeighbourhood::None,
             candidates,
@@ -359,11 +372,11 @@ impl Preset {
         self.round_stencil().is_some()
     }
 
-    /// The round neighbourhood the recipe's round passes share (a mesh level is marched for
-    /// it once, and each sample level resampled on it once), or none without such passes.
+    /// The circles the recipe's round and isotropic passes share (a mesh level is marched
+    /// for them once, and each sample level resampled once), or none without such passes.
     /// [`Self::validate`] refuses passes that disagree; here the first one's is taken.
     pub fn round_stencil(&self) -> Option<RoundStencil> {
-        self.all_passes().find_map(|p| p.stencil.round())
+        self.all_passes().find_map(|p| p.stencil.marching())
     }
 
     /// Every pass of the recipe, the coarsest level's first.
@@ -459,6 +472,14 @@ impl Preset {
                     .map_or(Ok(()), |why| refuse(format!("{level} pass {i}: {why}")))?;
             }
         }
+        let isotropic = self.all_passes().any(|p| p.stencil == Stencil::Isotropic);
+        let other = self.all_passes().filter_map(|p| p.stencil.round()).find(|&r| r != isotropic::MARCHED);
+        if let (true, Some(round)) = (isotropic, other) {
+            return refuse(format!(
+                "Isotropic passes march 2 circles, so Round passes beside them must have 2, not {}",
+                round.circles
+            ));
+        }
         let mut rounds = self.all_passes().filter_map(|p| p.stencil.round());
         if let Some(first) = rounds.next() {
             if let Some(other) = rounds.find(|&r| r != first) {
@@ -514,7 +535,16 @@ impl Stencil {
     pub fn round(&self) -> Option<RoundStencil> {
         match *self {
             Stencil::Round { circles } => Some(RoundStencil { circles }),
-            Stencil::Square => None,
+            Stencil::Square | Stencil::Isotropic => None,
+        }
+    }
+
+    /// The circles a mesh level is marched for: a round stencil's, or the isotropic
+    /// stencil's two.
+    pub fn marching(&self) -> Option<RoundStencil> {
+        match *self {
+            Stencil::Isotropic => Some(isotropic::MARCHED),
+            _ => self.round(),
         }
     }
 }
@@ -557,6 +587,20 @@ fn pass_problem(pass: &Pass, coarsest: bool) -> Option<String> {
             return Some(format!(
                 "a Round stencil has 1 to {MAX_CIRCLES} circles (the sample's border holds circles + 1 texels), not {circles}"
             ))
+        }
+        (MetricKind::Adaptive | MetricKind::Gamma, Stencil::Isotropic) => {
+            return Some(format!(
+                "the isotropic stencil compares colours or appearance vectors (metric Colour or Appearance), not {:?}",
+                pass.metric
+            ))
+        }
+        (_, Stencil::Isotropic) if pass.parent != ParentNeighbourhood::None => {
+            return Some("an Isotropic pass matches one level (parent must be None)".into())
+        }
+        (_, Stencil::Isotropic) if !matches!(pass.mask, Mask::Visited | Mask::Full) => {
+            return Some(
+                "an Isotropic pass compares visited vertices or all of them (mask Visited or Full)".into(),
+            )
         }
         (metric, Stencil::Round { .. }) if metric != MetricKind::Adaptive => {
             return Some(format!(
@@ -675,6 +719,46 @@ mod tests {
         json["finer"]["passes"][0]["stencil"] = serde_json::json!({"Round": {"circle": 3}});
         let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
         assert!(e.contains("circle"), "{e}");
+    }
+
+    /// The isotropic stencil runs with colours or appearance vectors on one level, beside
+    /// round passes only of its own 2 circles; castellanos records it, and a recipe
+    /// recorded before it (no stencil field) still reads, as the square template.
+    #[test]
+    fn isotropic_passes_the_engine_cannot_run_are_refused() {
+        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
+            let mut p = Preset::castellanos();
+            edit(&mut p);
+            let e = Preset::from_json(&p.to_json().to_string()).expect_err(needle).to_string();
+            assert!(e.contains(needle), "{e}");
+        };
+        refused(&|p| p.finer.passes[0].metric = MetricKind::Gamma, "not Gamma");
+        refused(&|p| p.finer.passes[0].parent = ParentNeighbourhood::Narrow, "parent must be None");
+        refused(&|p| p.finer.passes[0].mask = Mask::Half, "mask Visited or Full");
+        let round = |circles| {
+            move |p: &mut Preset| {
+                p.finer.passes[1] = Pass {
+                    stencil: Stencil::Round { circles },
+                    metric: MetricKind::Adaptive,
+                    ..p.finer.passes[1]
+                }
+            }
+        };
+        refused(&round(3), "must have 2, not 3");
+        let mut mixed = Preset::castellanos();
+        round(2)(&mut mixed);
+        assert!(Preset::from_json(&mixed.to_json().to_string()).is_ok());
+        let json = Preset::castellanos().to_json();
+        assert_eq!(json["finer"]["passes"][0]["stencil"], "Isotropic");
+        assert_eq!(Preset::castellanos().round_stencil(), Some(isotropic::MARCHED));
+        let mut old = json.clone();
+        for level in ["coarsest", "finer"] {
+            old[level]["passes"].as_array_mut().unwrap().iter_mut().for_each(|p| {
+                p.as_object_mut().unwrap().remove("stencil");
+            });
+        }
+        let read = Preset::from_json(&old.to_string()).unwrap();
+        assert!(read.all_passes().all(|p| p.stencil == Stencil::Square));
     }
 
     /// A candidate keeps circles + 1 texels of border: a 16² level that does not tile holds

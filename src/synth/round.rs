@@ -203,6 +203,23 @@ impl SurfaceMarching {
         }
     }
 
+    /// Vertex `v`'s surface points at `points` (circle, fraction of a turn from `start`),
+    /// for stencils other than [`RoundStencil::layout`]'s (the isotropic one,
+    /// [`super::isotropic`]): the same marched arcs, any number of points per circle.
+    /// Circle 0 is the vertex itself; points beyond the patch hold the default texton.
+    pub fn slots_at(&self, v: usize, start: StartPoint, points: &[(usize, f32)], out: &mut Vec<Slot>) {
+        out.clear();
+        let start_turn = (start.step as f32 + start.fraction) / POINTS_PER_CIRCLE as f32;
+        out.extend(points.iter().map(|&(c, turn)| {
+            if c == 0 || c > self.stencil.circles {
+                return if c == 0 { Slot::at(v as u32) } else { Slot::DEFAULT };
+            }
+            let i = v * self.stencil.circles + c - 1;
+            let arcs = &self.arcs[self.arc_start[i] as usize..self.arc_start[i + 1] as usize];
+            point_slot(arcs, (turn + start_turn).rem_euclid(1.0), c as f32 * self.texel)
+        }));
+    }
+
     /// Appends the marching to `out` in a compact little-endian form (read back by
     /// [`SurfaceMarching::read_from`]): the stencil's circles and the texel, then the
     /// reference frames, the CSR offsets and the arcs, each array after its length.

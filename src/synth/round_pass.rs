@@ -60,6 +60,24 @@ impl RoundTarget<'_> {
     }
 }
 
+impl RoundTarget<'_> {
+    /// Vertex `v`'s surface points at `points` (circle, fraction of a turn), for stencils
+    /// other than the round one (the isotropic stencil, [`super::isotropic`]), into `out`.
+    pub fn slots_at(&self, v: usize, points: &[(usize, f32)], out: &mut Vec<Slot>) {
+        match *self {
+            RoundTarget::Mesh { marching, starts } => marching.slots_at(v, starts[v], points, out),
+            RoundTarget::Grid { width, height, wraps } => {
+                out.clear();
+                let (x, y) = ((v % width) as f32, (v / width) as f32);
+                out.extend(points.iter().map(|&(c, turn)| {
+                    let angle = turn * TAU;
+                    grid_slot(x + c as f32 * angle.cos(), y - c as f32 * angle.sin(), width, height, wraps)
+                }));
+            }
+        }
+    }
+}
+
 /// The slot at real grid position (px, py): barycentric in the half of its cell it lies in.
 fn grid_slot(px: f32, py: f32, width: usize, height: usize, wraps: bool) -> Slot {
     // Snap rounding noise so that points on grid lines stay on them.

@@ -20,6 +20,7 @@ mod export;
 mod factor_analysis;
 mod gen;
 mod interrupt;
+mod isotropic;
 mod loaders;
 mod marching_cache;
 mod mesh_cli;

@@ -44,7 +44,8 @@ fn a_tileable_periodic_sample_is_reproduced() {
     for preset in btfsynth::synth::Preset::all() {
         let how = ["--preset", preset.name.as_str()];
         if common::samples_without_replacement(&preset) {
-            keeps_the_periodic_samples_statistics(dir.path(), &analysis, &how);
+            let isotropic = preset.all_passes().any(|p| p.stencil == btfsynth::synth::Stencil::Isotropic);
+            keeps_the_periodic_samples_statistics(dir.path(), &analysis, &how, isotropic);
         } else {
             reproduces_the_periodic_sample(dir.path(), &analysis, &how, preset.rounds());
         }
@@ -61,7 +62,7 @@ fn colour_recipes_reproduce_the_periodic_sample() {
         let file = common::write_recipe(&dir.path().join(format!("{}.json", colour.name)), &colour);
         let how = ["--recipe", file.to_str().unwrap()];
         if common::samples_without_replacement(&colour) {
-            keeps_the_periodic_samples_statistics(dir.path(), &analysis, &how);
+            keeps_the_periodic_samples_statistics(dir.path(), &analysis, &how, false);
         } else {
             reproduces_the_periodic_sample(dir.path(), &analysis, &how, false);
         }
@@ -99,12 +100,21 @@ fn synthesize_the_periodic_sample(
 }
 
 /// A preset that samples without replacement spreads its choices over the checker's
-/// texels rather than copying it whole: its textons and colours keep their shares (measured
-/// for `castellanos`: texton χ² 0.0004, colour χ² 0.0002), and nothing collapses, but its
-/// patches are not all the sample's (patch energy 0.023).
-fn keeps_the_periodic_samples_statistics(dir: &std::path::Path, analysis: &std::path::Path, how: &[&str]) {
+/// texels rather than copying it whole: its textons and colours keep their shares, and
+/// nothing collapses, but its patches are not all the sample's. Measured for
+/// `castellanos`: colour χ² 0.0009, patch energy 0.092; texton χ² 0.013 under its isotropic
+/// neighbourhood (0.0004 on the square template): copies turned by 60° are the checker's
+/// isotropic variant, whose edges run in directions the checker's oriented filters never
+/// saw, so `isotropic` allows the textons 0.02.
+fn keeps_the_periodic_samples_statistics(
+    dir: &std::path::Path,
+    analysis: &std::path::Path,
+    how: &[&str],
+    isotropic: bool,
+) {
     let q = synthesize_the_periodic_sample(dir, analysis, how);
-    assert!(q["textons"]["chi2"].as_f64().unwrap() < 0.01, "{q}");
+    let texton_limit = if isotropic { 0.02 } else { 0.01 };
+    assert!(q["textons"]["chi2"].as_f64().unwrap() < texton_limit, "{q}");
     assert!(q["probes"][0]["colour_chi2"].as_f64().unwrap() < 1e-3, "{q}");
     assert!(q["coords"]["collapse"].as_f64().unwrap() < 0.05, "{q}");
 }
