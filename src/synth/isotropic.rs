@@ -220,8 +220,11 @@ fn halved_cell(map: &AppearanceMap, p: Vec2, out: &mut [f32]) {
 /// What a level's isotropic passes share: where the points come from, the sample's
 /// neighbourhoods and every vertex's turn.
 pub struct IsoLevel<'a> {
+    /// Where a vertex's stencil points lie (the grid of a plane, or marching on a mesh).
     pub target: RoundTarget<'a>,
+    /// The sample's neighbourhoods, read once per level.
     pub sample: IsoSample,
+    /// Every vertex's turn (0°, 60° or 120°), which its candidates follow.
     pub turns: &'a Turns,
 }
 

@@ -41,7 +41,10 @@ pub enum Start {
     /// Random coherent patches of this radius, as a fraction of the coarsest sample level's
     /// smaller side, and at least the template's radius + 1 texels (see
     /// `start::patch_state`).
-    Patches { radius: f32 },
+    Patches {
+        /// Patch radius as a fraction of the coarsest sample level's smaller side.
+        radius: f32,
+    },
     /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
     /// only below the coarsest level.
     Inherit,
@@ -68,7 +71,10 @@ pub enum Stencil {
     /// `Adaptive` metric, which alone matches it. Chen and Dong use 3 (the 7×7 square's
     /// reach); 1 to [`MAX_CIRCLES`], and each candidate keeps a border of `circles + 1`
     /// texels, which the coarsest sample level in use must hold unless it tiles.
-    Round { circles: usize },
+    Round {
+        /// Concentric circles around the centre, one texel apart.
+        circles: usize,
+    },
     /// Castellanos and Williams' isotropic neighbourhood (§3.12, [`super::isotropic`]): 12
     /// points one texel from the vertex and 24 two texels away, centre excluded, weighted
     /// by proximity (Eq. 7), and compared with the sample's neighbourhood turned by 0°, 60°
@@ -109,13 +115,19 @@ pub enum Select {
     /// vertices over candidate texels) the texel is already used on this level. Exact matches
     /// (distance 0) keep winning, so coherent copies are untouched; among inexact ones, the
     /// texels the level leans on too often lose, which keeps the first-order statistics.
-    Choosy { strength: f32 },
+    Choosy {
+        /// How hard overused texels are penalised (0 is argmin).
+        strength: f32,
+    },
     /// Castellanos and Williams' choosy sampling as written (§3.11, Algorithm 2): the
     /// distance is multiplied by `base`^(c_j − c_min), c_j being how many times texel j was
     /// chosen so far in this pass (every visit's choice counts, kept or not) and c_min the
     /// least count over the level's candidate texels. The paper's base is 2: a soft
     /// sampling without replacement, so the output's colour histogram follows the sample's.
-    UsePenalty { base: f32 },
+    UsePenalty {
+        /// The penalty's base per choice beyond the least-used candidate (the paper's 2).
+        base: f32,
+    },
 }
 
 /// Which of the level's own template pixels a pass compares.
