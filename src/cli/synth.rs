@@ -7,10 +7,11 @@ use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
 use btfsynth::mesh::field::Orientation;
 use btfsynth::synth::plane::{synthesize_plane, write_plane};
 use btfsynth::synth::round::{MarchingCache, MarchingOrigin};
+use btfsynth::synth::session::{SearchChoice, SynthSessionBuilder};
 use btfsynth::synth::surface_map::{
     build_pyramid_cached, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
 };
-use btfsynth::synth::{LevelReport, MetricKind, Preset, Sample, Search, SynthParams};
+use btfsynth::synth::{LevelReport, MetricKind, Preset, Sample, SynthParams};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -195,45 +196,42 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         None => None,
     };
     let manifest = btfsynth::analysis::store::read_manifest(&analysis)?;
-    let levels = args.levels.unwrap_or(manifest.levels.len());
-    if levels > manifest.levels.len() {
-        return Err(usage(format!("--levels {levels}: the analysis has {} level(s)", manifest.levels.len())));
-    }
-    if let Some(n) = args.vertices {
-        check_vertices(n, "--vertices", levels, args.neighborhood)?;
-    }
-    let k = args.k.unwrap_or(manifest.k);
-    if k > manifest.k {
-        return Err(usage(format!("--k {k}: must be between 1 and the analysis' k = {}", manifest.k)));
-    }
-    check_neighbourhood(args.neighborhood, &manifest, levels)?;
-    btfsynth::analysis::store::verify_levels(&analysis, &manifest, levels)?;
-    let mut sample = Sample::open(&analysis, levels)?;
-    let search = match args.search {
-        SearchKind::Kcoherence => Search::KCoherence { k },
-        SearchKind::Full => Search::Full,
-    };
     let preset = match &args.recipe {
         Some(file) => read_recipe(file)?,
         None => Preset::by_name(&args.preset).map_err(usage_of)?,
     };
-    if preset.uses(MetricKind::Colour) {
+    let mut session =
+        SynthSessionBuilder::new().preset(preset).neighbourhood(args.neighborhood).seed(args.seed);
+    session = session.search(match args.search {
+        SearchKind::Kcoherence => SearchChoice::KCoherence,
+        SearchKind::Full => SearchChoice::Full,
+    });
+    if let Some(levels) = args.levels {
+        session = session.levels(levels);
+    }
+    if let Some(k) = args.k {
+        session = session.k(k);
+    }
+    // Every refusal comes before any remeshing, and is a usage error.
+    let session = session.build(&manifest).map_err(usage_of)?;
+    let levels = session.levels();
+    if let Some(n) = args.vertices {
+        check_vertices(n, "--vertices", levels, args.neighborhood)?;
+    }
+    btfsynth::analysis::store::verify_levels(&analysis, &manifest, levels)?;
+    let mut sample = Sample::open(&analysis, levels)?;
+    if session.params().preset.uses(MetricKind::Colour) {
         sample.load_colours(&analysis)?;
     }
-    preset.check_sample(&sample.levels).map_err(usage_of)?;
-    // Before any remeshing: a refused search is a usage error.
-    preset.check_search(search).map_err(usage_of)?;
-    let params = SynthParams { preset, search, neighborhood: args.neighborhood, seed: args.seed };
+    session.check_sample(&sample).map_err(usage_of)?;
+    let params = session.params().clone();
     let marching_cache = match &args.marching_cache {
         Some(dir) if args.mesh.is_some() && params.preset.rounds() => {
             Some(MarchingCache::open(dir).map_err(|e| usage(format!("--marching-cache: {e}")))?)
         }
         _ => None,
     };
-    let mut params_json = serde_json::json!({
-        "preset": params.preset.name, "recipe": params.preset.to_json(), "search": format!("{:?}", args.search).to_lowercase(), "k": k,
-        "levels": levels, "neighborhood": args.neighborhood, "seed": args.seed,
-    });
+    let mut params_json = session.provenance();
     let started = Instant::now();
     let (reports, written) = match (&args.mesh, args.plane, orientation) {
         (Some(mesh), None, Some(orientation)) => {
@@ -275,28 +273,6 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     eprintln!("wrote {} {written}", committed[0].display());
     if let Some(report) = committed.get(1) {
         eprintln!("wrote {}", report.display());
-    }
-    Ok(())
-}
-
-/// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there
-/// would have a whole neighbourhood to copy.
-fn check_neighbourhood(
-    n: usize,
-    manifest: &btfsynth::analysis::store::Manifest,
-    levels: usize,
-) -> Result<()> {
-    let Some(coarsest) = manifest.levels.get(levels.max(1) - 1) else { return Ok(()) };
-    let side = coarsest.width.min(coarsest.height);
-    if n > side {
-        let fit = if side % 2 == 1 { side } else { side.saturating_sub(1) };
-        return Err(usage(format!(
-            "--neighborhood {n}: the analysis' coarsest level in use (level {}) is {}x{} texels, \
-             which hold no whole {n}x{n} neighbourhood; use at most {fit}, or fewer --levels",
-            levels - 1,
-            coarsest.width,
-            coarsest.height
-        )));
     }
     Ok(())
 }

@@ -25,7 +25,6 @@ use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
 use super::recipe::Mask;
-use super::round::RoundStencil;
 use super::round_pass::RoundTarget;
 use super::sample::{AppearanceMap, SampleLevel};
 use super::slot::{Slot, OUTSIDE};
@@ -51,8 +50,9 @@ pub const BETA: [f32; 2] = [0.4684, 0.0615];
 /// The rotations compared: 0°, 60° and 120°.
 pub const TURNS: usize = 3;
 
-/// The circles the mesh levels are marched for.
-pub const MARCHED: RoundStencil = RoundStencil { circles: 2 };
+/// The circles the mesh levels are marched for (defined beside the stencil in the recipe,
+/// which must know it without using this module).
+pub use super::recipe::ISOTROPIC_MARCHED as MARCHED;
 
 /// Texels a candidate's neighbourhood reaches: the outer ring and one more for bilinear
 /// reads.

@@ -22,6 +22,7 @@ pub mod recipe;
 pub mod round;
 pub mod round_pass;
 pub mod sample;
+pub mod session;
 pub mod slot;
 pub(crate) mod square_pass;
 pub mod start;

@@ -5,10 +5,12 @@
 //! `synth` records the whole recipe in its outputs, so a result says how it was made.
 
 use super::candidates::Search;
-use super::isotropic;
 use super::round::RoundStencil;
 use super::sample::{AppearanceMap, SampleLevel};
 use crate::{Error, Result};
+
+/// The circles a mesh level is marched for under [`Stencil::Isotropic`]: its two rings.
+pub const ISOTROPIC_MARCHED: RoundStencil = RoundStencil { circles: 2 };
 
 /// The neighbourhood distance a pass matches with.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -485,7 +487,7 @@ impl Preset {
             }
         }
         let isotropic = self.all_passes().any(|p| p.stencil == Stencil::Isotropic);
-        let other = self.all_passes().filter_map(|p| p.stencil.round()).find(|&r| r != isotropic::MARCHED);
+        let other = self.all_passes().filter_map(|p| p.stencil.round()).find(|&r| r != ISOTROPIC_MARCHED);
         if let (true, Some(round)) = (isotropic, other) {
             return refuse(format!(
                 "Isotropic passes march 2 circles, so Round passes beside them must have 2, not {}",
@@ -555,7 +557,7 @@ impl Stencil {
     /// stencil's two.
     pub fn marching(&self) -> Option<RoundStencil> {
         match *self {
-            Stencil::Isotropic => Some(isotropic::MARCHED),
+            Stencil::Isotropic => Some(ISOTROPIC_MARCHED),
             _ => self.round(),
         }
     }
@@ -762,7 +764,7 @@ mod tests {
         assert!(Preset::from_json(&mixed.to_json().to_string()).is_ok());
         let json = Preset::castellanos().to_json();
         assert_eq!(json["finer"]["passes"][0]["stencil"], "Isotropic");
-        assert_eq!(Preset::castellanos().round_stencil(), Some(isotropic::MARCHED));
+        assert_eq!(Preset::castellanos().round_stencil(), Some(ISOTROPIC_MARCHED));
         let mut old = json.clone();
         for level in ["coarsest", "finer"] {
             old[level]["passes"].as_array_mut().unwrap().iter_mut().for_each(|p| {

@@ -1,0 +1,245 @@
+//! The per-vertex engine's front door: a synthesis set up and checked before any work.
+//!
+//! [`SynthSessionBuilder`]'s setters each say their default; [`SynthSessionBuilder::build`]
+//! checks every choice against the analysis it will run on (its manifest: levels, k, level
+//! sizes) and against the preset, into typed errors, so that a synthesis started from the
+//! session fails on no parameter. The session holds the engine's [`SynthParams`] and
+//! records its own provenance for the outputs.
+//!
+//! ```
+//! use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
+//! use btfsynth::btf::{self, gen::{GenParams, MaterialKind}, DirectionSet};
+//! use btfsynth::progress::Silent;
+//! use btfsynth::synth::{plane::synthesize_plane, session::SynthSessionBuilder, Preset, Sample};
+//!
+//! let params = GenParams { size: 24, samples_per_pixel: 1, directions: DirectionSet::Grid(2), ..GenParams::default() };
+//! let stack = btf::gen::generate(MaterialKind::Pebbles, &params, &Silent)?;
+//! let analysis = analyze(&stack, &AnalysisParams { textons: 32, levels: 2, ..AnalysisParams::default() }, &Silent)?;
+//! let sample = Sample::from_analysis(&analysis, &stack, 2)?;
+//! // Three levels of a two-level analysis: refused before any work.
+//! assert!(SynthSessionBuilder::new().levels(3).build(&sample.manifest).is_err());
+//! let session = SynthSessionBuilder::new().preset(Preset::tong2002()).seed(3).build(&sample.manifest)?;
+//! session.check_sample(&sample)?;
+//! let plane = synthesize_plane(&sample, (32, 32), false, session.params(), &Silent)?;
+//! assert_eq!(plane.state.uv.len(), 32 * 32);
+//! assert_eq!(session.provenance()["seed"], 3);
+//! # Ok::<(), btfsynth::Error>(())
+//! ```
+
+use super::{Preset, Search, SynthParams};
+use crate::analysis::store::Manifest;
+use crate::error::{Param, Remedy};
+use crate::{Error, Result};
+
+/// How candidates are found, before the analysis' `k` is known.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SearchChoice {
+    /// k-coherence (Tong §5.2) with the analysis' `k`, or the one set.
+    #[default]
+    KCoherence,
+    /// Every texel of the level (slow; the papers' exhaustive search).
+    Full,
+}
+
+/// The choices of a synthesis, unchecked (see the [module documentation](self)).
+#[derive(Clone, Debug)]
+pub struct SynthSessionBuilder {
+    preset: Preset,
+    search: SearchChoice,
+    k: Option<usize>,
+    levels: Option<usize>,
+    neighbourhood: usize,
+    seed: u64,
+}
+
+impl Default for SynthSessionBuilder {
+    fn default() -> Self {
+        let defaults = SynthParams::default();
+        SynthSessionBuilder {
+            preset: defaults.preset,
+            search: SearchChoice::KCoherence,
+            k: None,
+            levels: None,
+            neighbourhood: defaults.neighborhood,
+            seed: defaults.seed,
+        }
+    }
+}
+
+impl SynthSessionBuilder {
+    /// The defaults below.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The recipe the engine runs. Default: [`Preset::appearance`].
+    pub fn preset(mut self, preset: Preset) -> Self {
+        self.preset = preset;
+        self
+    }
+
+    /// How candidates are found. Default: [`SearchChoice::KCoherence`].
+    pub fn search(mut self, search: SearchChoice) -> Self {
+        self.search = search;
+        self
+    }
+
+    /// Candidates per neighbour for k-coherence, 1 to the analysis' own `k`. Default: the
+    /// analysis' `k`.
+    pub fn k(mut self, k: usize) -> Self {
+        self.k = Some(k);
+        self
+    }
+
+    /// Pyramid levels used, finest first, 1 to the analysis' levels. Default: all of them.
+    pub fn levels(mut self, levels: usize) -> Self {
+        self.levels = Some(levels);
+        self
+    }
+
+    /// Side of the square neighbourhood template in texels (odd). Default: 7.
+    pub fn neighbourhood(mut self, side: usize) -> Self {
+        self.neighbourhood = side;
+        self
+    }
+
+    /// Seed of every random choice; equal seeds give equal results at any thread count.
+    /// Default: 0.
+    pub fn seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Checks every choice against the analysis described by `manifest` and the preset:
+    /// the levels exist, `k` is within the analysis' lists, the coarsest level in use holds
+    /// a whole neighbourhood, and the preset can run the search.
+    pub fn build(self, manifest: &Manifest) -> Result<SynthSession> {
+        let available = manifest.levels.len();
+        let levels = self.levels.unwrap_or(available);
+        if !(1..=available).contains(&levels) {
+            let message = format!("the analysis has {available} level(s)");
+            return Err(Error::out_of_range(Param::Levels, levels, message));
+        }
+        let k = self.k.unwrap_or(manifest.k);
+        if !(1..=manifest.k).contains(&k) {
+            let message = format!("must be between 1 and the analysis' k = {}", manifest.k);
+            return Err(Error::out_of_range(Param::K, k, message));
+        }
+        check_neighbourhood(self.neighbourhood, manifest, levels)?;
+        let search = match self.search {
+            SearchChoice::KCoherence => Search::KCoherence { k },
+            SearchChoice::Full => Search::Full,
+        };
+        self.preset.check_search(search)?;
+        let params =
+            SynthParams { preset: self.preset, search, neighborhood: self.neighbourhood, seed: self.seed };
+        Ok(SynthSession { params, choice: self.search, k, levels })
+    }
+}
+
+/// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there
+/// would have a whole neighbourhood to copy.
+fn check_neighbourhood(n: usize, manifest: &Manifest, levels: usize) -> Result<()> {
+    let Some(coarsest) = manifest.levels.get(levels - 1) else { return Ok(()) };
+    let side = coarsest.width.min(coarsest.height);
+    if n <= side {
+        return Ok(());
+    }
+    let fit = if side % 2 == 1 { side } else { side.saturating_sub(1) };
+    Err(Error::OutOfRange {
+        param: Param::Neighbourhood,
+        value: n.to_string(),
+        message: format!(
+            "the analysis' coarsest level in use (level {}) is {}x{} texels, which hold no whole \
+             {n}x{n} neighbourhood (at most {fit}x{fit})",
+            levels - 1,
+            coarsest.width,
+            coarsest.height
+        ),
+        remedy: (levels > 1).then(|| Remedy::FewerLevels(levels - 1)),
+    })
+}
+
+/// A checked synthesis: the engine's parameters and the levels to use.
+#[derive(Clone, Debug)]
+pub struct SynthSession {
+    params: SynthParams,
+    choice: SearchChoice,
+    k: usize,
+    levels: usize,
+}
+
+impl SynthSession {
+    /// What the engine runs with.
+    pub fn params(&self) -> &SynthParams {
+        &self.params
+    }
+
+    /// Pyramid levels to use (open the sample with as many).
+    pub fn levels(&self) -> usize {
+        self.levels
+    }
+
+    /// Refuses a sample whose levels lack what the preset's metrics need (see
+    /// [`Preset::check_sample`]).
+    pub fn check_sample(&self, sample: &super::Sample) -> Result<()> {
+        self.params.preset.check_sample(&sample.levels)
+    }
+
+    /// The provenance the outputs record: preset and whole recipe, search, k, levels,
+    /// neighbourhood and seed (no timings, so equal inputs give equal bytes).
+    pub fn provenance(&self) -> serde_json::Value {
+        let search = match self.choice {
+            SearchChoice::KCoherence => "kcoherence",
+            SearchChoice::Full => "full",
+        };
+        serde_json::json!({
+            "preset": self.params.preset.name, "recipe": self.params.preset.to_json(), "search": search,
+            "k": self.k, "levels": self.levels, "neighborhood": self.params.neighborhood, "seed": self.params.seed,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::pipeline::{analyze, AnalysisParams};
+    use crate::btf::{gen, DirectionSet};
+    use crate::progress::Silent;
+
+    fn manifest() -> Manifest {
+        let params = gen::GenParams {
+            size: 24,
+            samples_per_pixel: 1,
+            directions: DirectionSet::Grid(2),
+            ..Default::default()
+        };
+        let stack = gen::generate(gen::MaterialKind::Pebbles, &params, &Silent).unwrap();
+        let analysis = analyze(
+            &stack,
+            &AnalysisParams { textons: 16, levels: 2, k: 5, ..AnalysisParams::default() },
+            &Silent,
+        )
+        .unwrap();
+        super::super::Sample::from_analysis(&analysis, &stack, 2).unwrap().manifest
+    }
+
+    /// Each refusal names its parameter; a good session takes the analysis' k and levels.
+    #[test]
+    fn a_session_refuses_what_the_analysis_or_the_preset_cannot_run() {
+        let m = manifest();
+        let param = |b: SynthSessionBuilder| match b.build(&m) {
+            Err(Error::OutOfRange { param, .. }) => Some(param),
+            _ => None,
+        };
+        assert_eq!(param(SynthSessionBuilder::new().levels(3)), Some(Param::Levels));
+        assert_eq!(param(SynthSessionBuilder::new().levels(0)), Some(Param::Levels));
+        assert_eq!(param(SynthSessionBuilder::new().k(6)), Some(Param::K));
+        assert_eq!(param(SynthSessionBuilder::new().neighbourhood(13)), Some(Param::Neighbourhood));
+        let chen = SynthSessionBuilder::new().preset(Preset::chen2008()).search(SearchChoice::Full).build(&m);
+        assert!(matches!(chen, Err(Error::IncompatibleSearch { .. })), "{chen:?}");
+        let session = SynthSessionBuilder::new().build(&m).unwrap();
+        assert_eq!((session.levels(), session.params().search), (2, Search::KCoherence { k: 5 }));
+        assert_eq!(session.provenance()["search"], "kcoherence");
+    }
+}
