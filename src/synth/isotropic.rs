@@ -25,6 +25,7 @@ use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
 use super::recipe::Mask;
+use super::round::{layout_offsets, resample_at_offsets};
 use super::round_pass::RoundTarget;
 use super::sample::{AppearanceMap, SampleLevel};
 use super::slot::{Slot, OUTSIDE};
@@ -32,7 +33,6 @@ use super::target::{Shift, TargetLevel};
 use crate::{Error, Result};
 use glam::Vec2;
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use std::f32::consts::TAU;
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -172,21 +172,9 @@ pub struct IsoSample {
 impl IsoSample {
     /// Resamples `map`, a `width × height` level (its border supplies texels past the edge).
     pub fn new(map: &AppearanceMap, width: usize, height: usize) -> Self {
-        let offsets: Vec<Vec2> = layout()
-            .iter()
-            .map(|&(c, turn)| {
-                let p = Vec2::from_angle(turn * TAU) * c as f32;
-                Vec2::new(p.x, -p.y)
-            })
-            .collect();
+        let offsets = layout_offsets(&layout());
+        let values = resample_at_offsets(map, width, height, &offsets, halved_cell);
         let dims = map.dims;
-        let mut values = vec![0.0f32; width * height * POINTS * dims];
-        values.par_chunks_mut(POINTS * dims).enumerate().for_each(|(p, texel)| {
-            let centre = Vec2::new((p % width) as f32, (p / width) as f32);
-            for (point, offset) in texel.chunks_mut(dims).zip(&offsets) {
-                halved_cell(map, centre + *offset, point);
-            }
-        });
         IsoSample { dims, values }
     }
 

@@ -463,23 +463,9 @@ impl RoundSample {
         if stencil.circles + 1 > AppearanceMap::PAD {
             return Err(Error::invalid(format!("at most {} circles", AppearanceMap::PAD - 1)));
         }
-        let offsets: Vec<Vec2> = stencil
-            .layout()
-            .iter()
-            .map(|&(c, turn)| {
-                let p = Vec2::from_angle(turn * TAU) * c as f32;
-                // x along s, y down t (image rows), as the square templates.
-                Vec2::new(p.x, -p.y)
-            })
-            .collect();
+        let offsets = layout_offsets(&stencil.layout());
         let dims = map.dims;
-        let mut values = vec![0.0f32; width * height * offsets.len() * dims];
-        values.par_chunks_mut(offsets.len() * dims).enumerate().for_each(|(p, texel)| {
-            let (x, y) = ((p % width) as f32, (p / width) as f32);
-            for (point, offset) in texel.chunks_mut(dims).zip(&offsets) {
-                bilinear(map, Vec2::new(x, y) + *offset, point);
-            }
-        });
+        let values = resample_at_offsets(map, width, height, &offsets, bilinear);
         Ok(RoundSample { stencil, width, height, dims, values })
     }
 
@@ -489,6 +475,38 @@ impl RoundSample {
         let o = (y * self.width + x) * n;
         &self.values[o..o + n]
     }
+}
+
+/// The texel offsets of a stencil's `(circle, turn)` points: x along s, y down t (image
+/// rows), as the square templates.
+pub(crate) fn layout_offsets(layout: &[(usize, f32)]) -> Vec<Vec2> {
+    layout
+        .iter()
+        .map(|&(c, turn)| {
+            let p = Vec2::from_angle(turn * TAU) * c as f32;
+            Vec2::new(p.x, -p.y)
+        })
+        .collect()
+}
+
+/// Every texel's neighbourhood of a `width × height` level of `map`: per texel, per offset,
+/// `read` at the texel plus the offset (`dims` values each), texel after texel.
+pub(crate) fn resample_at_offsets(
+    map: &AppearanceMap,
+    width: usize,
+    height: usize,
+    offsets: &[Vec2],
+    read: impl Fn(&AppearanceMap, Vec2, &mut [f32]) + Sync,
+) -> Vec<f32> {
+    let dims = map.dims;
+    let mut values = vec![0.0f32; width * height * offsets.len() * dims];
+    values.par_chunks_mut(offsets.len() * dims).enumerate().for_each(|(p, texel)| {
+        let centre = Vec2::new((p % width) as f32, (p / width) as f32);
+        for (point, offset) in texel.chunks_mut(dims).zip(offsets) {
+            read(map, centre + *offset, point);
+        }
+    });
+    values
 }
 
 /// `map` at the real position `p` by bilinear interpolation, into `out`.
