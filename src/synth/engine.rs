@@ -3,7 +3,7 @@
 //! reports. The pass loop itself is [`super::pass`].
 
 use super::candidates::{full_candidates, Coherence, Search};
-use super::recipe::Mask;
+use super::neighbourhood::Mask;
 pub use super::recipe::{Select, VisitOrder};
 use super::sample::SampleLevel;
 pub use super::state::State;

@@ -23,14 +23,13 @@
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
 use super::metric::known_parts;
+use super::neighbourhood::Compared;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
-use super::recipe::Mask;
 use super::round::{layout_offsets, resample_at_offsets};
 use super::round_pass::RoundTarget;
 use super::sample::{AppearanceMap, SampleLevel};
 use super::slot::{Slot, OUTSIDE};
 use super::target::{Shift, TargetLevel};
-use crate::{Error, Result};
 use glam::Vec2;
 use rand_chacha::ChaCha8Rng;
 use std::f32::consts::TAU;
@@ -52,7 +51,7 @@ pub const TURNS: usize = 3;
 
 /// The circles the mesh levels are marched for (defined beside the stencil in the recipe,
 /// which must know it without using this module).
-pub use super::recipe::ISOTROPIC_MARCHED as MARCHED;
+pub use super::neighbourhood::ISOTROPIC_MARCHED as MARCHED;
 
 /// Texels a candidate's neighbourhood reaches: the outer ring and one more for bilinear
 /// reads.
@@ -375,16 +374,6 @@ impl VertexMatch for IsoMatch<'_> {
     }
 }
 
-/// The map an isotropic pass compares: [`Mask::Full`] or [`Mask::Visited`] are the masks
-/// it runs under.
-pub fn check_mask(mask: Mask) -> Result<()> {
-    if matches!(mask, Mask::Full | Mask::Visited) {
-        Ok(())
-    } else {
-        Err(Error::invalid("an isotropic pass compares visited vertices or all of them"))
-    }
-}
-
 /// One isotropic pass over `level` under `schedule`, among k-coherence candidates that follow
 /// each neighbour's turn or, with [`Search::Full`], every candidate texel; picked as `select`
 /// says, with `bias` on candidates that start a new copy.
@@ -395,14 +384,13 @@ pub fn isotropic_pass(
     state: &mut State,
     sample: &SampleLevel,
     map: &AppearanceMap,
-    (search, mask, select, coherence_bias): (Search, Mask, Select, f32),
+    (search, compared, select, coherence_bias): (Search, Compared, Select, f32),
     schedule: &Schedule,
     rng: &mut ChaCha8Rng,
-) -> Result<PassStats> {
-    check_mask(mask)?;
+) -> PassStats {
     let make = || IsoMatch::new(iso, sample, map);
-    let plan = PassPlan { search, select, coherence_bias, mask };
-    Ok(run_scheduled_pass(level, state, sample, make, &plan, schedule, rng))
+    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask() };
+    run_scheduled_pass(level, state, sample, make, &plan, schedule, rng)
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ pub mod engine;
 pub(crate) mod flatten;
 pub mod isotropic;
 pub(crate) mod metric;
+pub mod neighbourhood;
 pub mod pass;
 pub mod patches;
 pub mod plane;
@@ -34,9 +35,11 @@ pub mod target;
 
 pub use candidates::Search;
 pub use engine::{Select, State, VisitOrder};
-pub use recipe::{
-    Candidates, LevelRecipe, Mask, MetricKind, ParentNeighbourhood, Pass, Preset, Start, Stencil,
+pub use neighbourhood::{
+    Compared, Mask, MetricKind, Neighbourhood, OwnPixels, ParentNeighbourhood, ParentTemplate, PointMetric,
+    SquareMetric, SquareTemplate, Stencil,
 };
+pub use recipe::{Candidates, LevelRecipe, Pass, PassRecord, Preset, Start};
 use sample::AppearanceMap;
 pub use sample::{Sample, SampleLevel};
 
@@ -159,14 +162,15 @@ pub fn synthesize(
                     level_sample,
                 );
                 let k = search.list_length(level_sample);
-                let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric);
+                let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
                 patches(metric, target, level_sample, (r, patch, k), &mut rng)?
             }
             (Start::Inherit, None) => unreachable!("checked above: the coarsest level does not inherit"),
         };
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
-        let isotropic_level = recipe.passes.iter().any(|p| p.stencil == Stencil::Isotropic);
+        let isotropic_level =
+            recipe.passes.iter().any(|p| matches!(p.neighbourhood, Neighbourhood::Isotropic { .. }));
         let turns =
             isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
         let iso = match &turns {
@@ -241,18 +245,20 @@ fn isotropic_inputs<'a>(
             return Err(Error::invalid("isotropic neighbourhoods on a mesh need its marching of 2 circles"))
         }
     };
-    let metric = recipe.passes.iter().find(|p| p.stencil == Stencil::Isotropic).map(|p| p.metric);
-    let map = isotropic_map(metric.unwrap_or(MetricKind::Colour), sample)?;
+    let metric = recipe.passes.iter().find_map(|p| match p.neighbourhood {
+        Neighbourhood::Isotropic { metric, .. } => Some(metric),
+        _ => None,
+    });
+    let map = isotropic_map(metric.unwrap_or(PointMetric::Colour), sample)?;
     let sample = isotropic::IsoSample::new(map, sample.width, sample.height);
     Ok(isotropic::IsoLevel { target: round, sample, turns })
 }
 
 /// The map an isotropic pass under `metric` compares.
-fn isotropic_map(metric: MetricKind, sample: &SampleLevel) -> Result<&AppearanceMap> {
+fn isotropic_map(metric: PointMetric, sample: &SampleLevel) -> Result<&AppearanceMap> {
     let map = match metric {
-        MetricKind::Colour => sample.colour.as_ref(),
-        MetricKind::Appearance => sample.appearance.as_ref(),
-        _ => None,
+        PointMetric::Colour => sample.colour.as_ref(),
+        PointMetric::Appearance => sample.appearance.as_ref(),
     };
     map.ok_or_else(|| Error::invalid(format!("an isotropic pass needs the {metric:?} map of the sample")))
 }
@@ -266,7 +272,8 @@ fn round_inputs<'a>(
     target: &'a TargetLevel,
     sample: &SampleLevel,
 ) -> Result<Option<(RoundTarget<'a>, RoundSample)>> {
-    let Some(stencil) = stencil.filter(|_| recipe.passes.iter().any(|p| p.stencil.round().is_some())) else {
+    let rounds = recipe.passes.iter().any(|p| matches!(p.neighbourhood, Neighbourhood::Round { .. }));
+    let Some(stencil) = stencil.filter(|_| rounds) else {
         return Ok(None);
     };
     let round = match (&target.neighbourhoods, &target.round) {
@@ -288,7 +295,8 @@ fn round_inputs<'a>(
     Ok(Some((round, RoundSample::new(map, sample.width, sample.height, stencil)?)))
 }
 
-/// Runs one pass, dispatching once on its metric so the candidate loop is monomorphised.
+/// Runs one pass, dispatching once on its neighbourhood so the candidate loop is
+/// monomorphised.
 fn run_pass(
     p: &Pass,
     inputs: &LevelInputs,
@@ -297,54 +305,58 @@ fn run_pass(
     order: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
-    if p.stencil == Stencil::Isotropic {
-        let iso = inputs.iso.expect("built for every level with an isotropic pass");
-        let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
-        let map = isotropic_map(p.metric, sample)?;
-        let search = capped(pass_search(p, params.search), sample);
-        let how = (search, p.mask, p.select, p.coherence_bias);
-        return isotropic::isotropic_pass(target, iso, state, sample, map, how, order, rng);
+    let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
+    let search = capped(pass_search(p, params.search), sample);
+    let (select, bias) = (p.select, p.coherence_bias);
+    match p.neighbourhood {
+        Neighbourhood::Isotropic { metric, compared } => {
+            let iso = inputs.iso.expect("built for every level with an isotropic pass");
+            let map = isotropic_map(metric, sample)?;
+            let how = (search, compared, select, bias);
+            Ok(isotropic::isotropic_pass(target, iso, state, sample, map, how, order, rng))
+        }
+        Neighbourhood::Round { compared, .. } => {
+            let (round, round_sample) = inputs.rounds.expect("built for every level with a round pass");
+            let how = (search, compared, select, bias);
+            round_pass::adaptive_pass(target, round, state, sample, round_sample, how, order, rng)
+        }
+        Neighbourhood::Square { metric, template } => {
+            let plan = PassPlan { search, mask: template.mask(), select, coherence_bias: bias };
+            let square = (inputs, template, &plan);
+            Ok(match metric {
+                SquareMetric::Gamma => {
+                    square_pass(square, state, order, rng, |s, t| GammaMetric { sample: s, template: t })
+                }
+                SquareMetric::Appearance => square_pass(square, state, order, rng, |s, t| AppearanceMetric {
+                    map: s.appearance.as_ref().expect("checked in synthesize"),
+                    template: t,
+                }),
+                SquareMetric::Colour => square_pass(square, state, order, rng, |s, t| AppearanceMetric {
+                    map: s.colour.as_ref().expect("checked in synthesize"),
+                    template: t,
+                }),
+            })
+        }
     }
-    Ok(match p.metric {
-        MetricKind::Gamma => {
-            run_pass_with(p, inputs, state, params, order, rng, |s, t| GammaMetric { sample: s, template: t })
-        }
-        MetricKind::Appearance => run_pass_with(p, inputs, state, params, order, rng, |s, t| {
-            AppearanceMetric { map: s.appearance.as_ref().expect("checked in synthesize"), template: t }
-        }),
-        MetricKind::Colour => run_pass_with(p, inputs, state, params, order, rng, |s, t| AppearanceMetric {
-            map: s.colour.as_ref().expect("checked in synthesize"),
-            template: t,
-        }),
-        MetricKind::Adaptive => {
-            let (round, round_sample) = inputs.rounds.expect("built for every level with an adaptive pass");
-            let (target, sample) = (&inputs.targets[inputs.l], &inputs.levels[inputs.l]);
-            let search = capped(pass_search(p, params.search), sample);
-            let how = (search, p.mask, p.select, p.coherence_bias);
-            round_pass::adaptive_pass(target, round, state, sample, round_sample, how, order, rng)?
-        }
-    })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run_pass_with<'a, M: Metric + Sync>(
-    p: &Pass,
-    inputs: &LevelInputs<'a>,
+/// Runs a square-template pass whose own and parent templates `metric` builds.
+fn square_pass<'a, M: Metric + Sync>(
+    (inputs, template, plan): (&LevelInputs<'a>, SquareTemplate, &PassPlan),
     state: &mut State,
-    params: &SynthParams,
     order: &Schedule,
     rng: &mut ChaCha8Rng,
     metric: impl Fn(&'a SampleLevel, usize) -> M,
 ) -> PassStats {
     let (l, target, level_sample) = (inputs.l, &inputs.targets[inputs.l], &inputs.levels[inputs.l]);
     let own = metric(level_sample, target.template);
-    let parent = match (p.parent, inputs.coarse) {
-        (ParentNeighbourhood::Narrow, Some(coarse)) => Some(Parent {
+    let parent = match (template.parent(), inputs.coarse) {
+        (Some(ParentTemplate::Narrow), Some(coarse)) => Some(Parent {
             state: coarse,
             metric: metric(&inputs.levels[l + 1], target.parent_template),
             wide: None,
         }),
-        (ParentNeighbourhood::Wide, Some(coarse)) => {
+        (Some(ParentTemplate::Wide), Some(coarse)) => {
             let coarser = &inputs.targets[l + 1];
             Some(Parent {
                 state: coarse,
@@ -354,14 +366,8 @@ fn run_pass_with<'a, M: Metric + Sync>(
         }
         _ => None,
     };
-    let plan = PassPlan {
-        search: capped(pass_search(p, params.search), level_sample),
-        mask: p.mask,
-        select: p.select,
-        coherence_bias: p.coherence_bias,
-    };
-    let make = || SquareMatch::new(target, level_sample, &own, parent.as_ref(), p.mask);
-    pass::run_scheduled_pass(target, state, level_sample, make, &plan, order, rng)
+    let make = || SquareMatch::new(target, level_sample, &own, parent.as_ref(), plan.mask);
+    pass::run_scheduled_pass(target, state, level_sample, make, plan, order, rng)
 }
 
 /// Random patches on `target`, their seams matched with the metric `kind`.

@@ -7,7 +7,7 @@
 
 use super::candidates::{full_candidates, Coherence, Search};
 use super::engine::{selection_factor, PassPlan, PassStats, State, Usage};
-use super::recipe::Mask;
+use super::neighbourhood::Mask;
 use super::sample::SampleLevel;
 use super::target::{Shift, TargetLevel, OUTSIDE};
 use rand::SeedableRng;

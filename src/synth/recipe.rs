@@ -1,38 +1,18 @@
 //! Presets as data: a [`Preset`] is a recipe naming, per level, how the level starts and
 //! which passes run over it, and per pass every part the engine is built from (visiting
-//! order, neighbourhood stencil and mask, parent neighbourhood, candidate source, metric,
-//! selection).
+//! order, neighbourhood and its metric ([`super::neighbourhood`]), candidate source,
+//! selection). A pass the engine cannot combine cannot be built; JSON recipes keep the flat
+//! form of earlier versions and are checked as they are read.
 //! `synth` records the whole recipe in its outputs, so a result says how it was made.
 
 use super::candidates::Search;
+use super::neighbourhood::{
+    Compared, Mask, MetricKind, Neighbourhood, OwnPixels, ParentNeighbourhood, ParentTemplate, PointMetric,
+    SquareMetric, SquareTemplate, Stencil, ISOTROPIC_MARCHED, MAX_CIRCLES,
+};
 use super::round::RoundStencil;
-use super::sample::{AppearanceMap, SampleLevel};
+use super::sample::SampleLevel;
 use crate::{Error, Result};
-
-/// The circles a mesh level is marched for under [`Stencil::Isotropic`]: its two rings.
-pub const ISOTROPIC_MARCHED: RoundStencil = RoundStencil { circles: 2 };
-
-/// The neighbourhood distance a pass matches with.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum MetricKind {
-    /// Surface textons through Γ (Tong §5.1).
-    Gamma,
-    /// Appearance vectors by SSD (Lefebvre and Hoppe 2006); needs an analysis that stores
-    /// them. For a photograph they are its colour neighbourhoods reduced by PCA, the
-    /// nearest the engine has to Turk's colour SSD.
-    Appearance,
-    /// Turk's colour SSD: the sample's linear RGB per texel, compared by plain SSD. For a
-    /// BTF, the mean of the analysis' selected images; every level's colours are that mean
-    /// taken down the analysis' own pyramid, centred and scaled to unit variance like the
-    /// appearance vectors (so that levels weigh alike in two-level distances). Built only
-    /// when a recipe uses it ([`super::Sample::load_colours`]).
-    Colour,
-    /// Chen and Dong 2008 §5: round neighbourhoods of appearance vectors compared by the
-    /// adaptive metric ([`super::adaptive`], [`super::round_pass`]). Such a pass ignores
-    /// the parent neighbourhood field (the linked pixels enter through the inherited
-    /// texels' candidates); choosy selection and the coherence bias weigh its distances.
-    Adaptive,
-}
 
 /// How a level's map starts before its passes.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -50,40 +30,6 @@ pub enum Start {
     /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
     /// only below the coarsest level.
     Inherit,
-}
-
-/// The most circles a round neighbourhood may have: the sample's appearance maps keep a
-/// border of [`AppearanceMap::PAD`] texels, and the round resampling reads one texel beyond
-/// the outer circle (bilinear), so `circles + 1` must fit in it.
-pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
-
-/// The shape of a pass's own-level neighbourhood: which offsets around a vertex it reads.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum Stencil {
-    /// The square template of Tong, Turk and Wei–Levoy: `SynthParams::neighborhood` texels a
-    /// side (default 7), every offset weighted alike. The pass's [`Mask`] shapes it: `Full` the
-    /// whole square, `Visited` the causal part, `Half` Turk's half square, `Off` none of it.
-    /// Matched by the `Gamma`, `Appearance` and `Colour` metrics. A recipe that names no
-    /// stencil (one recorded before the field existed) means this one.
-    #[default]
-    Square,
-    /// Chen and Dong's round neighbourhood (2008 §4): the centre and `circles` concentric
-    /// circles one texel apart (circle c holds 8c points), grown circle by circle by the
-    /// `Adaptive` metric, which alone matches it. Chen and Dong use 3 (the 7×7 square's
-    /// reach); 1 to [`MAX_CIRCLES`], and each candidate keeps a border of `circles + 1`
-    /// texels, which the coarsest sample level in use must hold unless it tiles.
-    Round {
-        /// Concentric circles around the centre, one texel apart.
-        circles: usize,
-    },
-    /// Castellanos and Williams' isotropic neighbourhood (§3.12, [`super::isotropic`]): 12
-    /// points one texel from the vertex and 24 two texels away, centre excluded, weighted
-    /// by proximity (Eq. 7), and compared with the sample's neighbourhood turned by 0°, 60°
-    /// and 120°, the least distance counting. Matched by the `Colour` and `Appearance`
-    /// metrics, on one level (no parent neighbourhood); mesh levels are marched for it as
-    /// for round neighbourhoods of 2 circles.
-    Isotropic,
 }
 
 /// Order in which a pass visits the vertices.
@@ -132,35 +78,6 @@ pub enum Select {
     },
 }
 
-/// Which of the level's own template pixels a pass compares.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Mask {
-    /// Every pixel: Turk's full square F(n, 0), Tong's template.
-    Full,
-    /// Only pixels of vertices already visited in this pass (Wei and Levoy's causal
-    /// neighbourhood on any visiting order).
-    Visited,
-    /// Turk's half square H(n, 0): only the columns upstream of the vertex along the
-    /// texture direction (template x < 0), the side a sweep has already coloured; forward
-    /// shifts are taken from those columns too.
-    Half,
-    /// None of them: the pass matches on the parent neighbourhood alone (Turk's
-    /// extrapolating F(n, 1)).
-    Off,
-}
-
-/// The coarser level's neighbourhood joining a pass's distance.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum ParentNeighbourhood {
-    /// No parent neighbourhood.
-    None,
-    /// The narrow parent template (`parent_size(n)`: 3 for n = 7), matched with two-level
-    /// kNN lists: Tong's two-level neighbourhood, Turk's F(3, 1).
-    Narrow,
-    /// The parent vertex's own full-size template on the coarser level: Turk's F(n, 1).
-    Wide,
-}
-
 /// Where a pass's candidates come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Candidates {
@@ -170,13 +87,32 @@ pub enum Candidates {
     Full,
 }
 
-/// One pass over a level.
+/// One pass over a level. Its neighbourhood holds only combinations the engine runs; in a
+/// recipe it is written as the flat fields of a [`PassRecord`], checked when read.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "PassRecord", into = "PassRecord")]
 pub struct Pass {
     /// Visiting order.
     pub order: VisitOrder,
-    /// The own-level neighbourhood's shape: square or round.
+    /// What the pass compares, and by which distance.
+    pub neighbourhood: Neighbourhood,
+    /// Where candidates come from.
+    pub candidates: Candidates,
+    /// How a vertex picks among its candidates.
+    pub select: Select,
+    /// Preference for continuing a copy over starting a new one (see
+    /// [`super::engine::PassPlan::coherence_bias`]).
+    pub coherence_bias: f32,
+}
+
+/// A pass as a recipe writes it: the neighbourhood as four flat parts, as recipes have
+/// always been recorded (one recorded before `stencil` existed means the square template).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PassRecord {
+    /// Visiting order.
+    pub order: VisitOrder,
+    /// The own-level neighbourhood's shape.
     #[serde(default)]
     pub stencil: Stencil,
     /// Which own-level template pixels are compared.
@@ -189,9 +125,79 @@ pub struct Pass {
     pub metric: MetricKind,
     /// How a vertex picks among its candidates.
     pub select: Select,
-    /// Preference for continuing a copy over starting a new one (see
-    /// [`super::engine::PassPlan::coherence_bias`]).
+    /// Preference for continuing a copy over starting a new one.
     pub coherence_bias: f32,
+}
+
+impl TryFrom<PassRecord> for Pass {
+    type Error = String;
+
+    fn try_from(r: PassRecord) -> std::result::Result<Self, String> {
+        let neighbourhood = Neighbourhood::from_parts(r.stencil, r.mask, r.parent, r.metric)?;
+        let pass = Pass {
+            order: r.order,
+            neighbourhood,
+            candidates: r.candidates,
+            select: r.select,
+            coherence_bias: r.coherence_bias,
+        };
+        pass.value_problem().map_or(Ok(pass), Err)
+    }
+}
+
+impl From<Pass> for PassRecord {
+    fn from(p: Pass) -> Self {
+        let (stencil, mask, parent, metric) = p.neighbourhood.parts();
+        PassRecord {
+            order: p.order,
+            stencil,
+            mask,
+            parent,
+            candidates: p.candidates,
+            metric,
+            select: p.select,
+            coherence_bias: p.coherence_bias,
+        }
+    }
+}
+
+impl Pass {
+    /// This pass with its flat record edited by `edit`, or why the edited one cannot run:
+    /// the way to change one part (say the metric) and keep the others.
+    pub fn edited(self, edit: impl FnOnce(&mut PassRecord)) -> std::result::Result<Self, String> {
+        let mut record = PassRecord::from(self);
+        edit(&mut record);
+        Pass::try_from(record)
+    }
+
+    /// The distance the pass matches with.
+    pub fn metric(&self) -> MetricKind {
+        self.neighbourhood.metric()
+    }
+
+    /// Why a number of the pass is out of range, if one is.
+    fn value_problem(&self) -> Option<String> {
+        if let Neighbourhood::Round { circles, .. } = self.neighbourhood {
+            if !(1..=MAX_CIRCLES).contains(&circles) {
+                return Some(format!(
+                    "a Round stencil has 1 to {MAX_CIRCLES} circles (the sample's border holds circles + 1 texels), not {circles}"
+                ));
+            }
+        }
+        match self.select {
+            Select::Choosy { strength } if !(strength.is_finite() && strength >= 0.0) => {
+                return Some(format!("the Choosy strength must be at least 0, not {strength}"))
+            }
+            Select::UsePenalty { base } if !(base.is_finite() && base >= 1.0) => {
+                return Some(format!("the UsePenalty base must be at least 1, not {base}"))
+            }
+            _ => {}
+        }
+        if !(self.coherence_bias.is_finite() && self.coherence_bias >= 0.0) {
+            return Some(format!("coherence_bias must be at least 0, not {}", self.coherence_bias));
+        }
+        None
+    }
 }
 
 /// How one level is synthesized: its start, then its passes in order.
@@ -204,9 +210,11 @@ pub struct LevelRecipe {
     pub passes: Vec<Pass>,
 }
 
-/// A named recipe: the coarsest level's, then the one every finer level follows.
+/// A named recipe: the coarsest level's, then the one every finer level follows. Read from
+/// JSON it is checked whole ([`Preset::validate`]), each refused pass named by its level and
+/// index.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "PresetRecord")]
 pub struct Preset {
     /// The name [`Preset::by_name`] knows it by (for a recipe read from a file, whatever it says).
     pub name: String,
@@ -218,6 +226,44 @@ pub struct Preset {
     pub finer: LevelRecipe,
 }
 
+/// A preset as JSON holds it, its passes still flat records.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PresetRecord {
+    name: String,
+    paper: String,
+    coarsest: LevelRecord,
+    finer: LevelRecord,
+}
+
+/// A level as JSON holds it.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LevelRecord {
+    start: Start,
+    passes: Vec<PassRecord>,
+}
+
+impl TryFrom<PresetRecord> for Preset {
+    type Error = Error;
+
+    fn try_from(r: PresetRecord) -> Result<Self> {
+        let name = r.name;
+        let level = |which: &str, level: LevelRecord| -> Result<LevelRecipe> {
+            let passes = level.passes.into_iter().enumerate().map(|(i, pass)| {
+                Pass::try_from(pass)
+                    .map_err(|why| Error::invalid(format!("recipe '{name}': {which} pass {i}: {why}")))
+            });
+            Ok(LevelRecipe { start: level.start, passes: passes.collect::<Result<_>>()? })
+        };
+        let coarsest = level("coarsest", r.coarsest)?;
+        let finer = level("finer", r.finer)?;
+        let preset = Preset { name: name.clone(), paper: r.paper, coarsest, finer };
+        preset.validate()?;
+        Ok(preset)
+    }
+}
+
 impl Preset {
     /// The default: Tong's engine matched on appearance vectors, from random patches, with
     /// a preference for continuing copies and choosy selection. Every departure from the paper
@@ -227,7 +273,7 @@ impl Preset {
         Self::tong_schedule(
             "appearance",
             "Tong et al. 2002, matched on appearance vectors (Lefebvre and Hoppe 2006)",
-            MetricKind::Appearance,
+            SquareMetric::Appearance,
         )
     }
 
@@ -238,7 +284,7 @@ impl Preset {
         Self::tong_schedule(
             "tong2002",
             "Tong, Zhang, Liu, Wang, Guo and Shum, SIGGRAPH 2002",
-            MetricKind::Gamma,
+            SquareMetric::Gamma,
         )
     }
 
@@ -261,14 +307,11 @@ impl Preset {
     /// 0.0026, Embark 0.0029). A sample that holds a single element (one tile) loses whole
     /// elements at this size; a recipe with a larger radius keeps them
     /// (docs/quality.md).
-    fn tong_schedule(name: &'static str, paper: &'static str, metric: MetricKind) -> Self {
-        let pass = |parent| Pass {
+    fn tong_schedule(name: &'static str, paper: &'static str, metric: SquareMetric) -> Self {
+        let pass = |template| Pass {
             order: VisitOrder::Interleaved,
-            stencil: Stencil::Square,
-            mask: Mask::Full,
-            parent,
+            neighbourhood: Neighbourhood::Square { metric, template },
             candidates: Candidates::Search,
-            metric,
             select: Select::Choosy { strength: 0.3 },
             coherence_bias: 0.5,
         };
@@ -277,9 +320,12 @@ impl Preset {
             paper: paper.into(),
             coarsest: LevelRecipe {
                 start: Start::Patches { radius: 0.15 },
-                passes: vec![pass(ParentNeighbourhood::None); 4],
+                passes: vec![pass(SquareTemplate::Own(OwnPixels::Full)); 4],
             },
-            finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(ParentNeighbourhood::Narrow); 2] },
+            finer: LevelRecipe {
+                start: Start::Inherit,
+                passes: vec![pass(SquareTemplate::OwnAndParent(OwnPixels::Full, ParentTemplate::Narrow)); 2],
+            },
         }
     }
 
@@ -289,13 +335,10 @@ impl Preset {
     /// appearance vectors for colours, the search given (k-coherence by default; the full
     /// search is the paper's), and choosy selection with a coherence bias.
     pub fn turk2001() -> Self {
-        let pass = |mask, parent| Pass {
+        let pass = |template| Pass {
             order: VisitOrder::Sweep,
-            stencil: Stencil::Square,
-            mask,
-            parent,
+            neighbourhood: Neighbourhood::Square { metric: SquareMetric::Appearance, template },
             candidates: Candidates::Search,
-            metric: MetricKind::Appearance,
             select: Select::Choosy { strength: 0.3 },
             coherence_bias: 0.5,
         };
@@ -304,13 +347,13 @@ impl Preset {
             paper: "Turk, Texture Synthesis on Surfaces, SIGGRAPH 2001".into(),
             coarsest: LevelRecipe {
                 start: Start::Random,
-                passes: vec![pass(Mask::Half, ParentNeighbourhood::None)],
+                passes: vec![pass(SquareTemplate::Own(OwnPixels::Half))],
             },
             finer: LevelRecipe {
                 start: Start::Inherit,
                 passes: vec![
-                    pass(Mask::Off, ParentNeighbourhood::Wide),
-                    pass(Mask::Full, ParentNeighbourhood::Narrow),
+                    pass(SquareTemplate::ParentOnly(ParentTemplate::Wide)),
+                    pass(SquareTemplate::OwnAndParent(OwnPixels::Full, ParentTemplate::Narrow)),
                 ],
             },
         }
@@ -322,21 +365,18 @@ impl Preset {
     /// those vertices' k-coherence), then refined once; every finer level inherits its
     /// parent's texels (the linked pixels) and is refined from the candidates around them.
     pub fn chen2008() -> Self {
-        let pass = |mask| Pass {
+        let pass = |compared| Pass {
             order: VisitOrder::MostConstrained,
-            stencil: Stencil::Round { circles: 3 },
-            mask,
-            parent: ParentNeighbourhood::None,
+            neighbourhood: Neighbourhood::Round { circles: 3, compared },
             candidates: Candidates::Search,
-            metric: MetricKind::Adaptive,
             select: Select::Choosy { strength: 0.3 },
             coherence_bias: 0.5,
         };
         Preset {
             name: "chen2008".into(),
             paper: "Chen and Dong, Adaptive Surface Texture Synthesis Using Round-Shaped Neighbourhoods, CGF 2008".into(),
-            coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Mask::Visited), pass(Mask::Full)] },
-            finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(Mask::Full)] },
+            coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Compared::Visited), pass(Compared::Full)] },
+            finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(Compared::Full)] },
         }
     }
 
@@ -365,11 +405,8 @@ impl Preset {
     pub fn castellanos() -> Self {
         let pass = |candidates| Pass {
             order: VisitOrder::Random,
-            stencil: Stencil::Isotropic,
-            mask: Mask::Full,
-            parent: ParentNeighbourhood::None,
+            neighbourhood: Neighbourhood::Isotropic { metric: PointMetric::Colour, compared: Compared::Full },
             candidates,
-            metric: MetricKind::Colour,
             select: Select::UsePenalty { base: 2.0 },
             coherence_bias: 1.0,
         };
@@ -390,7 +427,7 @@ impl Preset {
     /// for them once, and each sample level resampled once), or none without such passes.
     /// [`Self::validate`] refuses passes that disagree; here the first one's is taken.
     pub fn round_stencil(&self) -> Option<RoundStencil> {
-        self.all_passes().find_map(|p| p.stencil.marching())
+        self.all_passes().find_map(|p| p.neighbourhood.stencil().marching())
     }
 
     /// Every pass of the recipe, the coarsest level's first.
@@ -410,7 +447,7 @@ impl Preset {
     pub fn check_search(&self, search: Search) -> Result<()> {
         let adaptive_full = self
             .all_passes()
-            .any(|p| p.metric == MetricKind::Adaptive && pass_search(p, search) == Search::Full);
+            .any(|p| p.metric() == MetricKind::Adaptive && pass_search(p, search) == Search::Full);
         if adaptive_full {
             return Err(Error::IncompatibleSearch { preset: self.name.clone() });
         }
@@ -442,22 +479,20 @@ impl Preset {
 
     /// Whether any pass matches with `metric`.
     pub fn uses(&self, metric: MetricKind) -> bool {
-        self.all_passes().any(|p| p.metric == metric)
+        self.all_passes().any(|p| p.metric() == metric)
     }
 
     /// A recipe from JSON in the form [`Self::to_json`] writes (the `recipe` object `synth`
     /// records), checked with [`Self::validate`].
     pub fn from_json(text: &str) -> Result<Self> {
-        let preset: Preset = serde_json::from_str(text).map_err(|e| Error::invalid(e.to_string()))?;
-        preset.validate()?;
-        Ok(preset)
+        serde_json::from_str(text).map_err(|e| Error::invalid(e.to_string()))
     }
 
-    /// Refuses a recipe the engine cannot run as written: a coarsest level that inherits
-    /// (it has no parent), a level without passes, a parent neighbourhood on the coarsest
-    /// level, a pass that compares nothing (mask off without a parent neighbourhood), a
-    /// stencil its metric does not match, round passes that disagree on their circles, and
-    /// numbers out of range.
+    /// Refuses a recipe the engine cannot run as written, in what its types leave open: a
+    /// coarsest level that inherits (it has no parent), a level without passes, a parent
+    /// neighbourhood on the coarsest level, patches seamed by a round pass, round passes
+    /// that disagree on their circles, and numbers out of range. (A recipe read from JSON
+    /// has been validated already.)
     pub fn validate(&self) -> Result<()> {
         let refuse = |what: String| Err(Error::invalid(format!("recipe '{}': {what}", self.name)));
         if self.coarsest.start == Start::Inherit {
@@ -475,7 +510,7 @@ impl Preset {
                 }
             }
             if matches!(recipe.start, Start::Patches { .. })
-                && recipe.passes[0].metric == MetricKind::Adaptive
+                && recipe.passes[0].metric() == MetricKind::Adaptive
             {
                 return refuse(format!(
                     "the {level} level's patches are seamed by its first pass, which must match square templates, not Adaptive"
@@ -486,15 +521,18 @@ impl Preset {
                     .map_or(Ok(()), |why| refuse(format!("{level} pass {i}: {why}")))?;
             }
         }
-        let isotropic = self.all_passes().any(|p| p.stencil == Stencil::Isotropic);
-        let other = self.all_passes().filter_map(|p| p.stencil.round()).find(|&r| r != ISOTROPIC_MARCHED);
+        let isotropic = self.all_passes().any(|p| p.neighbourhood.stencil() == Stencil::Isotropic);
+        let other = self
+            .all_passes()
+            .filter_map(|p| p.neighbourhood.stencil().round())
+            .find(|&r| r != ISOTROPIC_MARCHED);
         if let (true, Some(round)) = (isotropic, other) {
             return refuse(format!(
                 "Isotropic passes march 2 circles, so Round passes beside them must have 2, not {}",
                 round.circles
             ));
         }
-        let mut rounds = self.all_passes().filter_map(|p| p.stencil.round());
+        let mut rounds = self.all_passes().filter_map(|p| p.neighbourhood.stencil().round());
         if let Some(first) = rounds.next() {
             if let Some(other) = rounds.find(|&r| r != first) {
                 return refuse(format!(
@@ -544,25 +582,6 @@ impl Preset {
     }
 }
 
-impl Stencil {
-    /// The round neighbourhood, for a round stencil.
-    pub fn round(&self) -> Option<RoundStencil> {
-        match *self {
-            Stencil::Round { circles } => Some(RoundStencil { circles }),
-            Stencil::Square | Stencil::Isotropic => None,
-        }
-    }
-
-    /// The circles a mesh level is marched for: a round stencil's, or the isotropic
-    /// stencil's two.
-    pub fn marching(&self) -> Option<RoundStencil> {
-        match *self {
-            Stencil::Isotropic => Some(ISOTROPIC_MARCHED),
-            _ => self.round(),
-        }
-    }
-}
-
 /// Why `sample` (the coarsest level in use) cannot serve round neighbourhoods of `round`, if
 /// it cannot: a candidate texel keeps `circles + 1` texels of border on every side (the
 /// resampling reads one beyond the outer circle), so a level that does not tile needs
@@ -585,63 +604,13 @@ fn round_fits(round: RoundStencil, sample: &SampleLevel) -> Option<String> {
     ))
 }
 
-/// Why the engine cannot run `pass` as written, if it cannot.
+/// Why the engine cannot run `pass` as written, if it cannot: its numbers, or a parent
+/// neighbourhood on the coarsest level (the one combination that depends on the level).
 fn pass_problem(pass: &Pass, coarsest: bool) -> Option<String> {
-    if coarsest && pass.parent != ParentNeighbourhood::None {
+    if coarsest && pass.neighbourhood.parent() != ParentNeighbourhood::None {
         return Some("the coarsest level has no parent neighbourhood (parent must be None)".into());
     }
-    if pass.mask == Mask::Off && pass.parent == ParentNeighbourhood::None {
-        return Some("mask Off compares nothing without a parent neighbourhood".into());
-    }
-    match (pass.metric, pass.stencil) {
-        (MetricKind::Adaptive, Stencil::Square) => {
-            return Some("the Adaptive metric matches round neighbourhoods (stencil {\"Round\": {\"circles\": 3}}), not Square".into())
-        }
-        (MetricKind::Adaptive, Stencil::Round { circles }) if !(1..=MAX_CIRCLES).contains(&circles) => {
-            return Some(format!(
-                "a Round stencil has 1 to {MAX_CIRCLES} circles (the sample's border holds circles + 1 texels), not {circles}"
-            ))
-        }
-        (MetricKind::Adaptive | MetricKind::Gamma, Stencil::Isotropic) => {
-            return Some(format!(
-                "the isotropic stencil compares colours or appearance vectors (metric Colour or Appearance), not {:?}",
-                pass.metric
-            ))
-        }
-        (_, Stencil::Isotropic) if pass.parent != ParentNeighbourhood::None => {
-            return Some("an Isotropic pass matches one level (parent must be None)".into())
-        }
-        (_, Stencil::Isotropic) if !matches!(pass.mask, Mask::Visited | Mask::Full) => {
-            return Some(
-                "an Isotropic pass compares visited vertices or all of them (mask Visited or Full)".into(),
-            )
-        }
-        (metric, Stencil::Round { .. }) if metric != MetricKind::Adaptive => {
-            return Some(format!(
-                "the {metric:?} metric matches square templates (stencil Square); round neighbourhoods need the Adaptive metric"
-            ))
-        }
-        _ => {}
-    }
-    if pass.metric == MetricKind::Adaptive && !matches!(pass.mask, Mask::Visited | Mask::Full) {
-        return Some(
-            "an Adaptive pass compares visited vertices or all of them (mask Visited or Full)".into(),
-        );
-    }
-    if let Select::Choosy { strength } = pass.select {
-        if !(strength.is_finite() && strength >= 0.0) {
-            return Some(format!("the Choosy strength must be at least 0, not {strength}"));
-        }
-    }
-    if let Select::UsePenalty { base } = pass.select {
-        if !(base.is_finite() && base >= 1.0) {
-            return Some(format!("the UsePenalty base must be at least 1, not {base}"));
-        }
-    }
-    if !(pass.coherence_bias.is_finite() && pass.coherence_bias >= 0.0) {
-        return Some(format!("coherence_bias must be at least 0, not {}", pass.coherence_bias));
-    }
-    None
+    pass.value_problem()
 }
 
 /// The candidate search of a pass, given the one asked of `synth`.
@@ -655,6 +624,33 @@ pub(crate) fn pass_search(pass: &Pass, asked: Search) -> Search {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `preset` as recorded, with every pass of `levels` (of "coarsest", "finer") whose index
+    /// `pick` accepts edited as its flat record by `edit`, read back.
+    fn read_edited(
+        preset: &Preset,
+        levels: &[&str],
+        pick: impl Fn(usize) -> bool,
+        edit: impl Fn(&mut PassRecord),
+    ) -> Result<Preset> {
+        let mut json = preset.to_json();
+        for &level in levels {
+            for (i, pass) in json[level]["passes"].as_array_mut().unwrap().iter_mut().enumerate() {
+                if pick(i) {
+                    let mut record: PassRecord = serde_json::from_value(pass.clone()).unwrap();
+                    edit(&mut record);
+                    *pass = serde_json::to_value(record).unwrap();
+                }
+            }
+        }
+        Preset::from_json(&json.to_string())
+    }
+
+    /// Why `read_edited` refused, which must say `needle`.
+    fn refused_as(read: Result<Preset>, needle: &str) {
+        let e = read.expect_err(needle).to_string();
+        assert!(e.contains(needle), "{e}");
+    }
 
     #[test]
     fn recipes_serialize_whole() {
@@ -681,53 +677,53 @@ mod tests {
     fn every_preset_matches_its_metric_on_its_stencil() {
         for p in Preset::all() {
             for pass in p.all_passes() {
-                let round = pass.stencil.round().is_some();
-                assert_eq!(round, pass.metric == MetricKind::Adaptive, "{}: {pass:?}", p.name);
+                let round = pass.neighbourhood.stencil().round().is_some();
+                assert_eq!(round, pass.metric() == MetricKind::Adaptive, "{}: {pass:?}", p.name);
             }
         }
         assert_eq!(Preset::chen2008().round_stencil(), Some(RoundStencil { circles: 3 }));
         assert_eq!(Preset::appearance().round_stencil(), None);
-        let mut two = Preset::chen2008();
-        two.all_passes_mut().for_each(|pass| pass.stencil = Stencil::Round { circles: 2 });
-        assert_eq!(
-            Preset::from_json(&two.to_json().to_string()).unwrap().round_stencil().unwrap().circles,
-            2
+        let two = read_edited(
+            &Preset::chen2008(),
+            &["coarsest", "finer"],
+            |_| true,
+            |r| r.stencil = Stencil::Round { circles: 2 },
         );
+        assert_eq!(two.unwrap().round_stencil().unwrap().circles, 2);
     }
 
     /// A stencil its metric does not match, circles out of range and round passes that
     /// disagree are refused, each with a message that says which.
     #[test]
     fn stencils_the_engine_cannot_run_are_refused() {
-        let edited = |edit: &dyn Fn(&mut Preset)| {
-            let mut p = Preset::chen2008();
-            edit(&mut p);
-            Preset::from_json(&p.to_json().to_string())
-        };
-        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
-            let e = edited(edit).expect_err(needle).to_string();
-            assert!(e.contains(needle), "{e}");
-        };
-        refused(
-            &|p| p.finer.passes[0].stencil = Stencil::Square,
-            "finer pass 0: the Adaptive metric matches round",
-        );
-        refused(
-            &|p| p.finer.passes[0].metric = MetricKind::Appearance,
+        let chen = Preset::chen2008();
+        let finer0 = |edit: &dyn Fn(&mut PassRecord)| read_edited(&chen, &["finer"], |i| i == 0, edit);
+        refused_as(finer0(&|r| r.stencil = Stencil::Square), "the Adaptive metric matches round");
+        refused_as(
+            finer0(&|r| r.metric = MetricKind::Appearance),
             "the Appearance metric matches square templates",
         );
-        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: 0 }, "not 0");
+        refused_as(finer0(&|r| r.parent = ParentNeighbourhood::Narrow), "a Round pass matches one level");
+        refused_as(finer0(&|r| r.stencil = Stencil::Round { circles: 0 }), "not 0");
         let past = MAX_CIRCLES + 1;
-        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: past }, &format!("not {past}"));
-        refused(&|p| p.finer.passes[0].stencil = Stencil::Round { circles: 4 }, "not 3 and 4");
+        refused_as(finer0(&|r| r.stencil = Stencil::Round { circles: past }), &format!("not {past}"));
+        refused_as(finer0(&|r| r.stencil = Stencil::Round { circles: 4 }), "not 3 and 4");
         let all = |circles| {
-            move |p: &mut Preset| p.all_passes_mut().for_each(|q| q.stencil = Stencil::Round { circles })
+            read_edited(
+                &chen,
+                &["coarsest", "finer"],
+                |_| true,
+                move |r| r.stencil = Stencil::Round { circles },
+            )
         };
-        assert!(edited(&all(1)).is_ok() && edited(&all(MAX_CIRCLES)).is_ok());
-        let mut square = Preset::turk2001();
-        square.finer.passes[1].stencil = Stencil::Round { circles: 3 };
-        let e = Preset::from_json(&square.to_json().to_string()).unwrap_err().to_string();
-        assert!(e.contains("finer pass 1: the Appearance metric matches square templates"), "{e}");
+        assert!(all(1).is_ok() && all(MAX_CIRCLES).is_ok());
+        let square = read_edited(
+            &Preset::turk2001(),
+            &["finer"],
+            |i| i == 1,
+            |r| r.stencil = Stencil::Round { circles: 3 },
+        );
+        refused_as(square, "the Appearance metric matches square templates");
         // Serde names a misspelt field inside the stencil.
         let mut json = Preset::chen2008().to_json();
         json["finer"]["passes"][0]["stencil"] = serde_json::json!({"Round": {"circle": 3}});
@@ -740,28 +736,24 @@ mod tests {
     /// recorded before it (no stencil field) still reads, as the square template.
     #[test]
     fn isotropic_passes_the_engine_cannot_run_are_refused() {
-        let refused = |edit: &dyn Fn(&mut Preset), needle: &str| {
-            let mut p = Preset::castellanos();
-            edit(&mut p);
-            let e = Preset::from_json(&p.to_json().to_string()).expect_err(needle).to_string();
-            assert!(e.contains(needle), "{e}");
-        };
-        refused(&|p| p.finer.passes[0].metric = MetricKind::Gamma, "not Gamma");
-        refused(&|p| p.finer.passes[0].parent = ParentNeighbourhood::Narrow, "parent must be None");
-        refused(&|p| p.finer.passes[0].mask = Mask::Half, "mask Visited or Full");
+        let castellanos = Preset::castellanos();
+        let finer0 = |edit: &dyn Fn(&mut PassRecord)| read_edited(&castellanos, &["finer"], |i| i == 0, edit);
+        refused_as(finer0(&|r| r.metric = MetricKind::Gamma), "not Gamma");
+        refused_as(finer0(&|r| r.parent = ParentNeighbourhood::Narrow), "parent must be None");
+        refused_as(finer0(&|r| r.mask = Mask::Half), "mask Visited or Full");
         let round = |circles| {
-            move |p: &mut Preset| {
-                p.finer.passes[1] = Pass {
-                    stencil: Stencil::Round { circles },
-                    metric: MetricKind::Adaptive,
-                    ..p.finer.passes[1]
-                }
-            }
+            read_edited(
+                &castellanos,
+                &["finer"],
+                |i| i == 1,
+                move |r| {
+                    r.stencil = Stencil::Round { circles };
+                    r.metric = MetricKind::Adaptive;
+                },
+            )
         };
-        refused(&round(3), "must have 2, not 3");
-        let mut mixed = Preset::castellanos();
-        round(2)(&mut mixed);
-        assert!(Preset::from_json(&mixed.to_json().to_string()).is_ok());
+        refused_as(round(3), "must have 2, not 3");
+        assert!(round(2).is_ok());
         let json = Preset::castellanos().to_json();
         assert_eq!(json["finer"]["passes"][0]["stencil"], "Isotropic");
         assert_eq!(Preset::castellanos().round_stencil(), Some(ISOTROPIC_MARCHED));
@@ -772,7 +764,7 @@ mod tests {
             });
         }
         let read = Preset::from_json(&old.to_string()).unwrap();
-        assert!(read.all_passes().all(|p| p.stencil == Stencil::Square));
+        assert!(read.all_passes().all(|p| p.neighbourhood.stencil() == Stencil::Square));
     }
 
     /// A candidate keeps circles + 1 texels of border: a 16² level that does not tile holds
@@ -823,18 +815,28 @@ mod tests {
         refused(&|p| p.coarsest.start = Start::Inherit, "coarsest level cannot inherit");
         refused(&|p| p.finer.passes.clear(), "finer level has no passes");
         refused(&|p| p.coarsest.passes.clear(), "coarsest level has no passes");
-        refused(&|p| p.coarsest.passes[1].parent = ParentNeighbourhood::Wide, "coarsest pass 1");
-        refused(
-            &|p| {
-                p.finer.passes[0] =
-                    Pass { mask: Mask::Off, parent: ParentNeighbourhood::None, ..p.finer.passes[0] }
+        let appearance = Preset::appearance();
+        let wide =
+            read_edited(&appearance, &["coarsest"], |i| i == 1, |r| r.parent = ParentNeighbourhood::Wide);
+        refused_as(wide, "coarsest pass 1");
+        let nothing = read_edited(
+            &appearance,
+            &["finer"],
+            |i| i == 0,
+            |r| {
+                r.mask = Mask::Off;
+                r.parent = ParentNeighbourhood::None;
             },
-            "mask Off compares nothing",
         );
+        refused_as(nothing, "mask Off compares nothing");
         refused(&|p| p.finer.passes[1].coherence_bias = -1.0, "coherence_bias");
         refused(&|p| p.finer.passes[1].select = Select::Choosy { strength: -0.5 }, "strength");
         refused(&|p| p.finer.passes[1].select = Select::UsePenalty { base: 0.5 }, "base");
         refused(&|p| p.coarsest.start = Start::Patches { radius: 0.0 }, "patch radius");
+        // A recipe built in code is held to the same numbers.
+        let mut built = Preset::appearance();
+        built.finer.passes[1].coherence_bias = f32::NAN;
+        assert!(built.validate().unwrap_err().to_string().contains("coherence_bias"));
     }
 
     /// Bad JSON is refused with serde's message, which names the field.
@@ -842,7 +844,10 @@ mod tests {
     fn malformed_recipes_name_the_field() {
         let mut json = Preset::tong2002().to_json();
         json["finer"]["passes"][0]["metric"] = "Colour".into();
-        assert_eq!(Preset::from_json(&json.to_string()).unwrap().finer.passes[0].metric, MetricKind::Colour);
+        assert_eq!(
+            Preset::from_json(&json.to_string()).unwrap().finer.passes[0].metric(),
+            MetricKind::Colour
+        );
         json["finer"]["passes"][0]["metric"] = "Colr".into();
         let e = Preset::from_json(&json.to_string()).unwrap_err().to_string();
         assert!(e.contains("Colr") && e.contains("Colour"), "{e}");

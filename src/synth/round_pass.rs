@@ -10,8 +10,8 @@ use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
 use super::flatten::slot;
 use super::metric::known_parts;
+use super::neighbourhood::Compared;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
-use super::recipe::Mask;
 use super::round::{RoundSample, RoundStencil, StartPoint, SurfaceMarching};
 use super::sample::{AppearanceMap, SampleLevel};
 use super::target::{Slot, TargetLevel, OUTSIDE};
@@ -137,13 +137,8 @@ impl<'a> RoundMatch<'a> {
         RoundMatch { round, sample, map, round_sample, query, slots, scratch }
     }
 
-    /// The appearance vectors of `sample` a pass under `mask` compares: [`Mask::Visited`]
-    /// (a level synthesized from nothing: only vertices visited so far are compared) or
-    /// [`Mask::Full`] (refining) are the masks it can run under.
-    pub fn appearance(sample: &SampleLevel, mask: Mask) -> Result<&AppearanceMap> {
-        if !matches!(mask, Mask::Visited | Mask::Full) {
-            return Err(Error::invalid("an adaptive pass compares visited vertices or all of them"));
-        }
+    /// The appearance vectors of `sample` a pass compares.
+    pub fn appearance(sample: &SampleLevel) -> Result<&AppearanceMap> {
         sample
             .appearance
             .as_ref()
@@ -215,13 +210,13 @@ pub fn adaptive_pass(
     state: &mut State,
     sample: &SampleLevel,
     round_sample: &RoundSample,
-    (search, mask, select, coherence_bias): (Search, Mask, Select, f32),
+    (search, compared, select, coherence_bias): (Search, Compared, Select, f32),
     schedule: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> Result<PassStats> {
-    let map = RoundMatch::appearance(sample, mask)?;
+    let map = RoundMatch::appearance(sample)?;
     let make = || RoundMatch::new(round, sample, map, round_sample);
-    let plan = PassPlan { search, select, coherence_bias, mask };
+    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask() };
     Ok(run_scheduled_pass(level, state, sample, make, &plan, schedule, rng))
 }
 
@@ -288,7 +283,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
         let round = RoundTarget::Grid { width: 32, height: 32, wraps: true };
-        let full = (Search::KCoherence { k: 4 }, Mask::Full, Select::Argmin, 0.0);
+        let full = (Search::KCoherence { k: 4 }, Compared::Full, Select::Argmin, 0.0);
         adaptive_pass(
             level,
             &round,
@@ -301,24 +296,12 @@ mod tests {
         )
         .unwrap();
         assert_eq!(state.labels, before.labels);
-        let half = (Search::KCoherence { k: 4 }, Mask::Half, Select::Argmin, 0.0);
-        assert!(adaptive_pass(
-            level,
-            &round,
-            &mut state,
-            &sample,
-            &round_sample,
-            half,
-            &Schedule::Order(order.clone()),
-            &mut rng
-        )
-        .is_err());
         // A random start is pulled towards the sample: most vertices then continue a
         // neighbour's copy (their texel is a neighbour's shifted by one step).
         let mut state = crate::synth::start::random_state(level, &sample, 4, &mut rng);
-        for mask in [Mask::Visited, Mask::Full] {
+        for compared in [Compared::Visited, Compared::Full] {
             let order = crate::synth::constrained::most_constrained_order(level, &mut rng);
-            let how = (Search::KCoherence { k: 4 }, mask, Select::Argmin, 0.0);
+            let how = (Search::KCoherence { k: 4 }, compared, Select::Argmin, 0.0);
             adaptive_pass(
                 level,
                 &round,

@@ -5,8 +5,8 @@
 
 use super::engine::State;
 use super::metric::Metric;
+use super::neighbourhood::Mask;
 use super::pass::{Choice, VertexMatch};
-use super::recipe::Mask;
 use super::sample::SampleLevel;
 use super::target::{Slot, TargetLevel};
 

@@ -99,7 +99,9 @@ pub fn colour_recipe(preset: &btfsynth::synth::Preset) -> btfsynth::synth::Prese
     let mut p = preset.clone();
     p.name = format!("{}-colour", p.name);
     for pass in p.coarsest.passes.iter_mut().chain(&mut p.finer.passes) {
-        pass.metric = btfsynth::synth::MetricKind::Colour;
+        *pass = pass
+            .edited(|r| r.metric = btfsynth::synth::MetricKind::Colour)
+            .expect("a square pass takes colours");
     }
     p
 }

@@ -64,7 +64,7 @@ fn stripes_give_an_isotropic_result_under_castellanos() {
     assert!(anisotropy(&dir.path().join("stripes.png")) > 0.99);
     let mut square = Preset::castellanos();
     square.name = "castellanos-square".into();
-    square.all_passes_mut().for_each(|p| p.stencil = Stencil::Square);
+    square.all_passes_mut().for_each(|p| *p = p.edited(|r| r.stencil = Stencil::Square).unwrap());
     let recipe = common::write_recipe(&dir.path().join("square.json"), &square);
     let isotropic = result_anisotropy(&analysis, &dir.path().join("iso"), &["--preset", "castellanos"]);
     let tong = result_anisotropy(&analysis, &dir.path().join("tong"), &["--preset", "tong2002"]);

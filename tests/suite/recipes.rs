@@ -263,7 +263,7 @@ fn the_round_stencil_is_the_recipes() {
     let analysis = common::analyze_gravel_crop(dir.path(), "analysis");
     let mut two = Preset::chen2008();
     two.name = "chen2008-two-circles".into();
-    two.all_passes_mut().for_each(|p| p.stencil = Stencil::Round { circles: 2 });
+    two.all_passes_mut().for_each(|p| *p = p.edited(|r| r.stencil = Stencil::Round { circles: 2 }).unwrap());
     let file = common::write_recipe(&dir.path().join("two.json"), &two);
     let plane = ["-q", "synth", s(&analysis), "--plane", "40x32", "--seed", "5"];
     let (by_two, by_three) = (dir.path().join("two"), dir.path().join("three"));

@@ -44,7 +44,9 @@ fn a_tileable_periodic_sample_is_reproduced() {
     for preset in btfsynth::synth::Preset::all() {
         let how = ["--preset", preset.name.as_str()];
         if common::samples_without_replacement(&preset) {
-            let isotropic = preset.all_passes().any(|p| p.stencil == btfsynth::synth::Stencil::Isotropic);
+            let isotropic = preset
+                .all_passes()
+                .any(|p| matches!(p.neighbourhood, btfsynth::synth::Neighbourhood::Isotropic { .. }));
             keeps_the_periodic_samples_statistics(dir.path(), &analysis, &how, isotropic);
         } else {
             reproduces_the_periodic_sample(dir.path(), &analysis, &how, preset.rounds());
