@@ -2,13 +2,14 @@
 //! ([`Stencil`], [`Mask`], [`ParentNeighbourhood`], [`MetricKind`]), most of whose
 //! combinations the engine cannot run; a [`Neighbourhood`] holds only the ones it can, so
 //! the engine dispatches on it without run-time refusals. [`Neighbourhood::from_parts`] is
-//! the one place a flat recipe is checked; [`Neighbourhood::parts`] writes it back.
+//! the one place a flat combination is checked; [`Neighbourhood::parts`] writes it back.
 
 use super::round::RoundStencil;
 use super::sample::AppearanceMap;
 
 /// The circles a mesh level is marched for under [`Stencil::Isotropic`]: its two rings.
 pub const ISOTROPIC_MARCHED: RoundStencil = RoundStencil { circles: 2 };
+
 /// The neighbourhood distance a pass matches with.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum MetricKind {
