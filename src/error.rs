@@ -10,13 +10,28 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// A parameter a caller chooses, as errors name it: an analysis setting, a synthesis or
-/// pattern-mapping setting, a rendering or export option.
-///
-/// Deliberately exhaustive, so that a front end's table of names (see [`Vocabulary`])
-/// stops compiling when a parameter is added without a name there.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Param {
+/// Declares [`Param`] and its [`Param::ALL`] from one list, so that the list of every
+/// parameter cannot miss one.
+macro_rules! params {
+    ($($(#[$doc:meta])* $name:ident,)*) => {
+        /// A parameter a caller chooses, as errors name it: an analysis setting, a synthesis or
+        /// pattern-mapping setting, a rendering or export option.
+        ///
+        /// Deliberately exhaustive, so that a front end's table of names (see [`Vocabulary`])
+        /// stops compiling when a parameter is added without a name there.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Param {
+            $($(#[$doc])* $name,)*
+        }
+
+        impl Param {
+            /// Every parameter, in declaration order, for tables that must name each one.
+            pub const ALL: &'static [Param] = &[$(Param::$name,)*];
+        }
+    };
+}
+
+params! {
     /// Components per colour channel of a factorization (`btf::factorize::factorize`).
     Components,
     /// The rectangle of the sample to read ([`crate::btf::Crop`]).
@@ -74,37 +89,6 @@ pub enum Param {
 }
 
 impl Param {
-    /// Every parameter, for tables that must name each one.
-    pub const ALL: [Param; 27] = [
-        Param::Components,
-        Param::Crop,
-        Param::AtlasSize,
-        Param::Padding,
-        Param::Light,
-        Param::Mesh,
-        Param::Analysis,
-        Param::Upload,
-        Param::FrameSize,
-        Param::Rotations,
-        Param::Band,
-        Param::PatchOrientation,
-        Param::FirstFace,
-        Param::Scale,
-        Param::TexelsAcross,
-        Param::Vertices,
-        Param::FrameOrientation,
-        Param::PlaneSize,
-        Param::Levels,
-        Param::Textons,
-        Param::SelectedImages,
-        Param::K,
-        Param::BasisRank,
-        Param::AppearanceDims,
-        Param::Neighbourhood,
-        Param::Search,
-        Param::Preset,
-    ];
-
     /// The parameter in the library's words: "first face", "atlas size".
     pub fn name(self) -> &'static str {
         match self {

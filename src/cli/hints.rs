@@ -120,7 +120,7 @@ mod tests {
     #[test]
     fn every_parameter_and_remedy_names_a_flag_the_command_line_has() {
         let known = known_flags();
-        for param in Param::ALL {
+        for &param in Param::ALL {
             assert!(known.contains(flag(param)), "{param:?}: {} is no flag", flag(param));
         }
         let remedies = [
