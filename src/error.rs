@@ -80,6 +80,22 @@ params! {
     BasisRank,
     /// Dimensions of the appearance vectors (`AnalysisParams::appearance_dims`).
     AppearanceDims,
+    /// The material maps given with an analysis, as `KIND=FILE` pairs ([`crate::maps`]).
+    Maps,
+    /// The side of a generated sample, in pixels (`btf::gen::GenParams::size`).
+    SampleSize,
+    /// Rays per pixel of a generated sample (`btf::gen::GenParams::samples_per_pixel`).
+    SamplesPerPixel,
+    /// A named set of view and light directions ([`crate::btf::DirectionSet`]).
+    Directions,
+    /// The target edge length of a remeshing (`mesh::remesh::RemeshParams`).
+    EdgeLength,
+    /// The colour space pattern mapping compares in (`synth::patches::ColourSpace`).
+    ColourSpace,
+    /// The largest flattening distortion of a pattern-mapped patch (`SolerParams::max_flat_error`).
+    MaxDistortion,
+    /// The largest seam error of a pattern-mapped patch (`SolerParams::max_fit_error`).
+    FitThreshold,
     /// The side of the square neighbourhood matched, in texels (`neighborhood`).
     Neighbourhood,
     /// Where candidates come from: k-coherence or every texel ([`crate::synth::Search`]).
@@ -116,6 +132,14 @@ impl Param {
             Param::K => "k",
             Param::BasisRank => "basis rank",
             Param::AppearanceDims => "appearance dimensions",
+            Param::Maps => "material maps",
+            Param::SampleSize => "sample size",
+            Param::SamplesPerPixel => "samples per pixel",
+            Param::Directions => "directions",
+            Param::EdgeLength => "edge length",
+            Param::ColourSpace => "colour space",
+            Param::MaxDistortion => "maximum distortion",
+            Param::FitThreshold => "fit threshold",
             Param::Neighbourhood => "neighbourhood",
             Param::Search => "search",
             Param::Preset => "preset",
@@ -230,8 +254,9 @@ pub enum Error {
         /// What is wrong with its contents.
         message: String,
     },
-    /// A value is out of its domain, where no one [`Param`] is at fault (a recipe's
-    /// passes, a mesh that cannot be remeshed).
+    /// A value handed to a library function is out of its domain where no one [`Param`] is
+    /// at fault: data of inconsistent sizes (pixels that do not fill the images said), a
+    /// mesh that cannot be remeshed, a result that does not fit the analysis offered.
     InvalidArgument(String),
     /// A parameter's value is out of its domain, or does not fit the input at hand.
     OutOfRange {
@@ -261,6 +286,30 @@ pub enum Error {
     },
     /// An output exists and overwriting was not allowed.
     OutputExists(PathBuf),
+    /// An output cannot go where it was asked: the path is a directory or a device where a
+    /// file belongs (or the reverse), an input or another output, in a folder that is missing
+    /// or cannot be written, or named with an extension of another format.
+    OutputRefused {
+        /// The output asked for.
+        path: PathBuf,
+        /// Why, naming the path.
+        message: String,
+    },
+    /// A synthesis recipe (a preset, or one read from JSON) whose parts cannot run together
+    /// or whose numbers are out of range.
+    Recipe {
+        /// The recipe's name.
+        recipe: String,
+        /// What is wrong, naming the level and pass where one is at fault.
+        message: String,
+    },
+    /// The GPU refused: no adapter, a device that failed, a format or a window it cannot
+    /// use, a readback that did not arrive.
+    Gpu(String),
+    /// A broken invariant of the library's own, which no input should reach (a bug if seen):
+    /// an FFT handed buffers of the wrong length, an array laid out otherwise than it was
+    /// made, a value serde cannot write.
+    Internal(String),
     /// The preset cannot run with a full search: its adaptive passes take their
     /// candidates around the linked texels (k-coherence) only.
     IncompatibleSearch {
@@ -300,6 +349,26 @@ impl Error {
         Error::InvalidArgument(message.into())
     }
 
+    /// `path` cannot be an output: `message` says why, naming it.
+    pub fn output_refused(path: impl AsRef<Path>, message: impl Into<String>) -> Self {
+        Error::OutputRefused { path: path.as_ref().to_path_buf(), message: message.into() }
+    }
+
+    /// The recipe called `recipe` is refused: `message` says why.
+    pub fn recipe(recipe: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Recipe { recipe: recipe.into(), message: message.into() }
+    }
+
+    /// The GPU refused: `message` says what.
+    pub fn gpu(message: impl Into<String>) -> Self {
+        Error::Gpu(message.into())
+    }
+
+    /// A broken invariant of the library's own: `message` says which.
+    pub fn internal(message: impl Into<String>) -> Self {
+        Error::Internal(message.into())
+    }
+
     /// `param`, set to `value`, is wrong: `message` says how.
     pub fn out_of_range(param: Param, value: impl fmt::Display, message: impl Into<String>) -> Self {
         Error::OutOfRange { param, value: value.to_string(), message: message.into(), remedy: None }
@@ -322,7 +391,12 @@ impl Error {
         match self {
             Error::Io { path, source } => format!("{}: {}", OneLine(path.display()), OneLine(source)),
             Error::Format { path, message } => format!("{}: {}", OneLine(path.display()), OneLine(message)),
-            Error::InvalidArgument(message) => OneLine(message).to_string(),
+            Error::InvalidArgument(message) | Error::Gpu(message) => OneLine(message).to_string(),
+            Error::OutputRefused { message, .. } => OneLine(message).to_string(),
+            Error::Recipe { recipe, message } => {
+                format!("recipe '{}': {}", OneLine(recipe), OneLine(message))
+            }
+            Error::Internal(message) => format!("internal error (please report it): {}", OneLine(message)),
             Error::OutOfRange { param, value, message, remedy } => {
                 let subject = words.param(*param, &OneLine(value).to_string());
                 match remedy {
@@ -437,6 +511,29 @@ mod tests {
             "a.btf: decoding it would take 9 GiB; decode a part of the stack (a crop)"
         );
         assert_eq!(Error::OutputExists("out".into()).describe(&Marked), "out already exists (<Overwrite>)");
+    }
+
+    /// A caller can tell the kinds of refusal apart by variant, not by text.
+    #[test]
+    fn refusals_come_as_their_own_variants() {
+        let preset = crate::synth::Preset::by_name("nope").unwrap_err();
+        assert!(matches!(preset, Error::OutOfRange { param: Param::Preset, .. }), "{preset:?}");
+        assert!(preset.to_string().starts_with("preset 'nope': unknown preset"), "{preset}");
+        let dir = std::env::temp_dir();
+        let input = crate::fsutil::check_not_input("the output", &dir, &[&dir]).unwrap_err();
+        assert!(matches!(&input, Error::OutputRefused { path, .. } if *path == dir), "{input:?}");
+        let mut recipe = crate::synth::Preset::by_name("tong2002").unwrap();
+        recipe.finer.passes.clear();
+        let refused = recipe.validate().unwrap_err();
+        assert!(matches!(&refused, Error::Recipe { recipe, .. } if recipe == "tong2002"), "{refused:?}");
+        assert!(
+            refused.to_string().starts_with("recipe 'tong2002': the finer level has no passes"),
+            "{refused}"
+        );
+        let size = crate::btf::gen::GenParams { size: 3, ..Default::default() }.validate().unwrap_err();
+        assert!(matches!(size, Error::OutOfRange { param: Param::SampleSize, .. }), "{size:?}");
+        let internal = Error::internal("FFT: lengths\ndiffer");
+        assert_eq!(internal.to_string(), "internal error (please report it): FFT: lengths\\ndiffer");
     }
 
     #[test]

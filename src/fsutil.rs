@@ -130,20 +130,23 @@ fn commit_locked(staged: &mut Staged, register: &mut Vec<PathBuf>) -> Result<()>
             std::io::Write::flush(&mut into)
         });
         if let Err(e) = copied {
-            return Err(Error::invalid(format!(
-                "{}: cannot write into this {special}: {e}",
-                target.display()
-            )));
+            return Err(Error::output_refused(
+                &target,
+                format!("{}: cannot write into this {special}: {e}", target.display()),
+            ));
         }
         remove_any(&staged.staging);
     } else {
         let staging_is_dir = std::fs::symlink_metadata(&staged.staging).is_ok_and(|m| m.is_dir());
         let existing = std::fs::symlink_metadata(&target).ok();
         if existing.as_ref().is_some_and(|m| m.is_dir()) && !staging_is_dir {
-            return Err(Error::invalid(format!(
-                "{} is a directory; this output is a file, which never replaces one",
-                target.display()
-            )));
+            return Err(Error::output_refused(
+                &target,
+                format!(
+                    "{} is a directory; this output is a file, which never replaces one",
+                    target.display()
+                ),
+            ));
         }
         // A file replaces a file (or a link) in one atomic rename; anything else moves the
         // old output aside first.
@@ -222,10 +225,10 @@ fn unwritable_kind(path: &Path) -> Option<&'static str> {
 /// device or FIFO passes (an output is written into it); a block device or socket never does.
 pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
     if let Some(kind) = unwritable_kind(target) {
-        return Err(Error::invalid(format!(
-            "{} is a {kind}; btfsynth writes no output there",
-            target.display()
-        )));
+        return Err(Error::output_refused(
+            target,
+            format!("{} is a {kind}; btfsynth writes no output there", target.display()),
+        ));
     }
     if special_kind(target).is_some() {
         return Ok(());
@@ -240,10 +243,10 @@ pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
 /// (even with `overwrite`), a device or FIFO is written into.
 pub fn check_file_target(target: &Path, overwrite: bool) -> Result<()> {
     if std::fs::metadata(target).is_ok_and(|m| m.is_dir()) {
-        return Err(Error::invalid(format!(
-            "{} is a directory; this output is a file (name a file instead)",
-            target.display()
-        )));
+        return Err(Error::output_refused(
+            target,
+            format!("{} is a directory; this output is a file (name a file instead)", target.display()),
+        ));
     }
     check_target(target, overwrite)
 }
@@ -252,10 +255,10 @@ pub fn check_file_target(target: &Path, overwrite: bool) -> Result<()> {
 /// refused (a directory cannot be written into one, and it is never replaced).
 pub fn check_dir_target(target: &Path, overwrite: bool) -> Result<()> {
     if let Some(kind) = special_kind(target) {
-        return Err(Error::invalid(format!(
-            "{} is a {kind}; this output is a directory, which cannot replace it",
-            target.display()
-        )));
+        return Err(Error::output_refused(
+            target,
+            format!("{} is a {kind}; this output is a directory, which cannot replace it", target.display()),
+        ));
     }
     check_target(target, overwrite)
 }
@@ -271,11 +274,10 @@ fn probe_parent(target: &Path) -> Result<()> {
     match created {
         Ok(_) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
-        Err(e) => Err(Error::invalid(format!(
-            "{}: cannot write in {}: {e}",
-            target.display(),
-            parent_of(target).display()
-        ))),
+        Err(e) => Err(Error::output_refused(
+            target,
+            format!("{}: cannot write in {}: {e}", target.display(), parent_of(target).display()),
+        )),
     }
 }
 
@@ -286,11 +288,14 @@ fn probe_parent(target: &Path) -> Result<()> {
 pub fn check_not_input(what: &str, output: &Path, inputs: &[&Path]) -> Result<()> {
     for input in inputs {
         if let Some(why) = overlap(output, input) {
-            return Err(Error::invalid(format!(
-                "{what} {} {why} the input {}; inputs are never replaced: choose another output",
-                output.display(),
-                input.display()
-            )));
+            return Err(Error::output_refused(
+                output,
+                format!(
+                    "{what} {} {why} the input {}; inputs are never replaced: choose another output",
+                    output.display(),
+                    input.display()
+                ),
+            ));
         }
     }
     Ok(())
@@ -300,11 +305,14 @@ pub fn check_not_input(what: &str, output: &Path, inputs: &[&Path]) -> Result<()
 /// first: one would overwrite the other.
 pub fn check_apart(what: &str, second: &Path, first: &Path) -> Result<()> {
     match overlap(second, first) {
-        Some(why) => Err(Error::invalid(format!(
-            "{what} {} {why} the output {}; give each output its own name",
-            second.display(),
-            first.display()
-        ))),
+        Some(why) => Err(Error::output_refused(
+            second,
+            format!(
+                "{what} {} {why} the output {}; give each output its own name",
+                second.display(),
+                first.display()
+            ),
+        )),
         None => Ok(()),
     }
 }
@@ -346,10 +354,10 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// is removed if `write` fails (or the process is interrupted, see [`remove_staged`]).
 pub fn write_with_temp(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     if let Some(kind) = unwritable_kind(path) {
-        return Err(Error::invalid(format!(
-            "{} is a {kind}; btfsynth writes no output there",
-            path.display()
-        )));
+        return Err(Error::output_refused(
+            path,
+            format!("{} is a {kind}; btfsynth writes no output there", path.display()),
+        ));
     }
     let staged = Staged::reserve(path)?;
     write(staged.path())?;
@@ -462,15 +470,16 @@ const PROBE: &str = "probe";
 fn temp_sibling(path: &Path, tag: &str) -> Result<PathBuf> {
     let name = path
         .file_name()
-        .ok_or_else(|| Error::invalid(format!("{}: not a file or directory name", path.display())))?
+        .ok_or_else(|| {
+            Error::output_refused(path, format!("{}: not a file or directory name", path.display()))
+        })?
         .to_string_lossy();
     let parent = parent_of(path);
     if !parent.is_dir() {
-        return Err(Error::invalid(format!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            parent.display()
-        )));
+        return Err(Error::output_refused(
+            path,
+            format!("{}: the directory {} does not exist", path.display(), parent.display()),
+        ));
     }
     let (stem, ext) = match name.rsplit_once('.') {
         Some((s, e)) if !s.is_empty() => (s.to_string(), format!(".{e}")),

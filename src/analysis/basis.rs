@@ -358,7 +358,7 @@ fn decode_rows(source: &dyn crate::btf::ImageSource, block: std::ops::Range<usiz
     use rayon::prelude::*;
     let d = source.width() * source.height() * 3;
     let mut rows = Array2::<f32>::zeros((block.len(), d));
-    let flat = rows.as_slice_mut().ok_or_else(|| Error::invalid("batch buffer is not contiguous"))?;
+    let flat = rows.as_slice_mut().ok_or_else(|| Error::internal("batch buffer is not contiguous"))?;
     flat.par_chunks_mut(d).zip(block.into_par_iter()).try_for_each(|(out, i)| {
         let mut image = vec![half::f16::ZERO; d];
         source.decode_image(i, &mut image)?;

@@ -159,7 +159,7 @@ impl BankConvolver {
             plan.respond(&spectrum, kernel, (half, half), (width, height), plane)
         })?;
         Array3::from_shape_vec((self.bank.len(), height, width), out)
-            .map_err(|e| Error::invalid(format!("internal error shaping filter responses: {e}")))
+            .map_err(|e| Error::internal(format!("shaping filter responses: {e}")))
     }
 
     /// The cached plan for images of this size, built on first use.
@@ -281,7 +281,7 @@ fn fft_len(n: usize) -> usize {
 }
 
 fn fft_error(e: realfft::FftError) -> Error {
-    Error::invalid(format!("internal FFT error: {e}"))
+    Error::internal(format!("FFT: {e}"))
 }
 
 impl SizePlan {

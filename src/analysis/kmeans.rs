@@ -240,8 +240,7 @@ impl<'a> Points<'a> {
                 "k-means: {n} points of {d} dimensions is nothing to cluster"
             )));
         }
-        let data =
-            array.as_slice().ok_or_else(|| Error::invalid("k-means: internal error: data not contiguous"))?;
+        let data = array.as_slice().ok_or_else(|| Error::internal("k-means: data not contiguous"))?;
         if let Some(i) = data.par_iter().position_first(|v| !v.is_finite()) {
             return Err(Error::invalid(format!(
                 "k-means: point {} has {} in dimension {}; clustering needs finite values",

@@ -289,7 +289,7 @@ fn write_sample(
     manifest.maps = crate::maps::store_maps(out, maps)?;
     manifest.sample = sample;
     manifest.basis = basis;
-    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::internal(e.to_string()))?;
     write_file_atomic(&out.join(MANIFEST), json.as_bytes())?;
     staged.commit()
 }

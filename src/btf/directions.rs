@@ -4,7 +4,7 @@
 //! Angles are kept in the degrees they were read or generated in, so that a stack
 //! round-trips exactly through its files; geometry goes through [`Direction::unit`].
 
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::fmt;
@@ -177,9 +177,11 @@ impl std::str::FromStr for DirectionSet {
             "ubo151" => Ok(DirectionSet::Ubo151),
             _ => match s.strip_prefix("grid:").map(str::parse::<usize>) {
                 Some(Ok(n)) if (1..=1000).contains(&n) => Ok(DirectionSet::Grid(n)),
-                _ => Err(Error::invalid(format!(
-                    "directions '{s}': expected ubo81, ubo151 or grid:N with N in 1..=1000"
-                ))),
+                _ => Err(Error::out_of_range(
+                    Param::Directions,
+                    format!("'{s}'"),
+                    "expected ubo81, ubo151 or grid:N with N in 1..=1000",
+                )),
             },
         }
     }

@@ -87,7 +87,7 @@ pub fn write_images(
             .collect(),
         source,
     };
-    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&manifest).map_err(|e| Error::internal(e.to_string()))?;
     write_file_atomic(&staged.path().join(MANIFEST), json.as_bytes())?;
     staged.commit()
 }

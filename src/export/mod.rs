@@ -491,7 +491,10 @@ fn is_binary_output(output: &Path) -> Result<bool> {
     match output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).as_deref() {
         Some("glb") => Ok(true),
         Some("gltf") => Ok(false),
-        _ => Err(Error::invalid(format!("{}: the output must be a .glb or .gltf file", output.display()))),
+        _ => Err(Error::output_refused(
+            output,
+            format!("{}: the output must be a .glb or .gltf file", output.display()),
+        )),
     }
 }
 

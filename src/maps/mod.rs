@@ -16,7 +16,7 @@ pub mod stored;
 
 pub use image::{Depth, MapImage};
 
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -56,9 +56,11 @@ impl MapKind {
     /// The kind called `name`.
     pub fn parse(name: &str) -> Result<MapKind> {
         MapKind::ALL.into_iter().find(|k| k.name() == name).ok_or_else(|| {
-            Error::invalid(format!(
-                "unknown map kind '{name}': expected normal, roughness, metallic, occlusion or height"
-            ))
+            Error::out_of_range(
+                Param::Maps,
+                format!("'{name}'"),
+                "unknown map kind: expected normal, roughness, metallic, occlusion or height",
+            )
         })
     }
 }
@@ -76,17 +78,21 @@ pub struct MapSource {
 pub fn parse_map_list(list: &str) -> Result<Vec<MapSource>> {
     let mut sources: Vec<MapSource> = Vec::new();
     for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let (kind, path) = item
-            .split_once('=')
-            .ok_or_else(|| Error::invalid(format!("'{item}': expected KIND=FILE, e.g. normal=n.png")))?;
+        let (kind, path) = item.split_once('=').ok_or_else(|| {
+            Error::out_of_range(Param::Maps, format!("'{item}'"), "expected KIND=FILE, e.g. normal=n.png")
+        })?;
         let kind = MapKind::parse(kind.trim())?;
         if sources.iter().any(|s| s.kind == kind) {
-            return Err(Error::invalid(format!("the {} map is given twice", kind.name())));
+            return Err(Error::out_of_range(
+                Param::Maps,
+                "",
+                format!("the {} map is given twice", kind.name()),
+            ));
         }
         sources.push(MapSource { kind, path: PathBuf::from(path.trim()) });
     }
     if sources.is_empty() {
-        return Err(Error::invalid("no maps given: expected KIND=FILE[,KIND=FILE…]"));
+        return Err(Error::out_of_range(Param::Maps, "", "none given: expected KIND=FILE[,KIND=FILE…]"));
     }
     Ok(sources)
 }

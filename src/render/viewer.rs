@@ -218,7 +218,7 @@ struct App {
 impl App {
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<State> {
         let (scene, sample, lighting) =
-            self.setup.take().ok_or_else(|| Error::invalid("viewer resumed twice"))?;
+            self.setup.take().ok_or_else(|| Error::internal("viewer resumed twice"))?;
         let (w, h) = self.plan.size;
         let attributes = Window::default_attributes()
             .with_title("btfsynth view")
@@ -237,7 +237,7 @@ impl App {
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
-            .ok_or_else(|| Error::invalid(format!("{} cannot draw into this window", gpu.name())))?;
+            .ok_or_else(|| Error::gpu(format!("{} cannot draw into this window", gpu.name())))?;
         // The shader writes linear colour: an sRGB surface encodes it.
         config.format = config.format.add_srgb_suffix();
         surface.configure(&gpu.device, &config);
@@ -326,7 +326,7 @@ impl State {
         let swap = match format {
             wgpu::TextureFormat::Rgba8UnormSrgb | wgpu::TextureFormat::Rgba8Unorm => false,
             wgpu::TextureFormat::Bgra8UnormSrgb | wgpu::TextureFormat::Bgra8Unorm => true,
-            other => return Err(Error::invalid(format!("cannot save frames of a {other:?} window"))),
+            other => return Err(Error::gpu(format!("cannot save frames of a {other:?} window"))),
         };
         let size = self.size();
         let shot = controls.shot(plan, self.scene.scene.mesh.bounds(), size);
@@ -358,10 +358,10 @@ impl State {
             }
             p[3] = 255;
         }
-        let path = (0..10_000)
-            .map(|i| dir.join(format!("view-{i:04}.png")))
-            .find(|p| !p.exists())
-            .ok_or_else(|| Error::invalid(format!("{}: no free view-NNNN.png name left", dir.display())))?;
+        let path =
+            (0..10_000).map(|i| dir.join(format!("view-{i:04}.png"))).find(|p| !p.exists()).ok_or_else(
+                || Error::output_refused(dir, format!("{}: no free view-NNNN.png name left", dir.display())),
+            )?;
         let (w, h) = (size.0 as usize, size.1 as usize);
         crate::fsutil::write_with_temp(&path, |tmp| {
             crate::btf::image_io::write_png8(tmp, w, h, &bytes, image::ExtendedColorType::Rgba8)

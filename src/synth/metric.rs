@@ -14,8 +14,10 @@ use super::engine::State;
 use super::sample::{AppearanceMap, SampleLevel};
 use super::target::{Slot, OUTSIDE};
 
-/// A neighbourhood distance on one level.
-pub(crate) trait Metric {
+/// A neighbourhood distance on one level: the part of a square-template match
+/// ([`super::square_pass::SquareMatch`]) that says how far a candidate's sample neighbourhood
+/// is from a vertex's template.
+pub trait Metric {
     /// A vertex's template, prepared once so each candidate costs as little as possible.
     type Query: Default;
 
@@ -57,14 +59,16 @@ pub(crate) fn known_parts<'a>(
 }
 
 /// Tong's distance through Γ.
-pub(crate) struct GammaMetric<'a> {
+pub struct GammaMetric<'a> {
+    /// The sample level whose texton map and Γ the templates are compared with.
     pub sample: &'a SampleLevel,
+    /// The template's side, in texels (odd).
     pub template: usize,
 }
 
 /// One template pixel for [`GammaMetric`]: s = Σ wₐ t(textonsₐ) and s·s.
 #[derive(Clone, Copy)]
-pub(crate) struct Term {
+pub struct Term {
     dx: i64,
     dy: i64,
     textons: [u16; 3],
@@ -127,16 +131,18 @@ impl Metric for GammaMetric<'_> {
     }
 }
 
-/// Plain SSD of appearance vectors.
-pub(crate) struct AppearanceMetric<'a> {
+/// Plain SSD of appearance vectors (or of colours, through a map of three dimensions).
+pub struct AppearanceMetric<'a> {
+    /// The sample level's vectors ([`SampleLevel::appearance`] or [`SampleLevel::colour`]).
     pub map: &'a AppearanceMap,
+    /// The template's side, in texels (odd).
     pub template: usize,
 }
 
 /// A prepared template for [`AppearanceMetric`]: per compared pixel its offset into the
 /// map's values and its vector.
 #[derive(Default)]
-pub(crate) struct Vectors {
+pub struct Vectors {
     offsets: Vec<isize>,
     values: Vec<f32>,
 }

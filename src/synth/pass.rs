@@ -4,6 +4,42 @@
 //! the coherence bias, and takes it. What differs between the papers — how a neighbourhood
 //! is read and compared (square templates, Chen and Dong's round ones) — is the
 //! [`VertexMatch`] part; the loop itself is the same for all.
+//!
+//! Every part is public, so a pass can be run by hand (what [`super::synthesize`] does per
+//! level and pass of a recipe), or with a [`VertexMatch`] of one's own:
+//!
+//! ```
+//! use btfsynth::analysis::pipeline::{analyze, AnalysisParams};
+//! use btfsynth::btf::{self, gen::{GenParams, MaterialKind}, DirectionSet};
+//! use btfsynth::progress::Silent;
+//! use btfsynth::synth::engine::{visit_order, PassPlan, Select, VisitOrder};
+//! use btfsynth::synth::metric::AppearanceMetric;
+//! use btfsynth::synth::neighbourhood::Mask;
+//! use btfsynth::synth::pass::run_pass;
+//! use btfsynth::synth::square_pass::SquareMatch;
+//! use btfsynth::synth::{start::random_state, target::grid_levels, Sample, Search};
+//! use rand::SeedableRng;
+//!
+//! let params = GenParams { size: 32, samples_per_pixel: 1, directions: DirectionSet::Grid(2), ..GenParams::default() };
+//! let stack = btf::gen::generate(MaterialKind::Pebbles, &params, &Silent)?;
+//! let analysis = analyze(&stack, &AnalysisParams { textons: 32, levels: 1, ..AnalysisParams::default() }, &Silent)?;
+//! let sample = Sample::from_analysis(&analysis, &stack, 1)?;
+//! let level = &sample.levels[0];
+//!
+//! // A 48² plane, a 7×7 template compared on appearance vectors, k-coherence candidates.
+//! let target = &grid_levels(48, 48, 1, 7, 3)[0];
+//! let metric = AppearanceMetric { map: level.appearance.as_ref().expect("analysed"), template: 7 };
+//! let mut matcher = SquareMatch::new(target, level, &metric, None, Mask::Full);
+//! let plan = PassPlan { search: Search::KCoherence { k: 4 }, select: Select::Argmin, coherence_bias: 0.5, mask: Mask::Full };
+//! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+//! let mut state = random_state(target, level, 3, &mut rng);
+//! let first = visit_order(target, VisitOrder::Random, None, &mut rng);
+//! let before = run_pass(target, &mut state, level, &mut matcher, &plan, &first, &mut rng);
+//! let again = visit_order(target, VisitOrder::Random, None, &mut rng);
+//! let after = run_pass(target, &mut state, level, &mut matcher, &plan, &again, &mut rng);
+//! assert!(after.mean_best < before.mean_best, "a second pass matches better");
+//! # Ok::<(), btfsynth::Error>(())
+//! ```
 
 use super::candidates::{full_candidates, Coherence, Search};
 use super::engine::{selection_factor, PassPlan, PassStats, State, Usage};

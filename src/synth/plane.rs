@@ -130,7 +130,7 @@ pub fn write_plane(
         "shown": shown,
         "levels": result.reports,
     });
-    let text = serde_json::to_string_pretty(&manifest).map_err(|e| Error::invalid(e.to_string()))?;
+    let text = serde_json::to_string_pretty(&manifest).map_err(|e| Error::internal(e.to_string()))?;
     write_file_atomic(&dir.join(MANIFEST), text.as_bytes())?;
     staged.commit()
 }

@@ -12,7 +12,7 @@ use super::neighbourhood::{
 };
 use super::round::RoundStencil;
 use super::sample::SampleLevel;
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 
 /// How a level's map starts before its passes.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -251,8 +251,7 @@ impl TryFrom<PresetRecord> for Preset {
         let name = r.name;
         let level = |which: &str, level: LevelRecord| -> Result<LevelRecipe> {
             let passes = level.passes.into_iter().enumerate().map(|(i, pass)| {
-                Pass::try_from(pass)
-                    .map_err(|why| Error::invalid(format!("recipe '{name}': {which} pass {i}: {why}")))
+                Pass::try_from(pass).map_err(|why| Error::recipe(&name, format!("{which} pass {i}: {why}")))
             });
             Ok(LevelRecipe { start: level.start, passes: passes.collect::<Result<_>>()? })
         };
@@ -463,7 +462,11 @@ impl Preset {
     pub fn by_name(name: &str) -> Result<Self> {
         Self::all().into_iter().find(|p| p.name == name).ok_or_else(|| {
             let names: Vec<String> = Self::all().into_iter().map(|p| p.name).collect();
-            Error::invalid(format!("unknown preset '{name}': available: {}", names.join(", ")))
+            Error::out_of_range(
+                Param::Preset,
+                format!("'{name}'"),
+                format!("unknown preset; available: {}", names.join(", ")),
+            )
         })
     }
 
@@ -494,7 +497,7 @@ impl Preset {
     /// that disagree on their circles, and numbers out of range. (A recipe read from JSON
     /// has been validated already.)
     pub fn validate(&self) -> Result<()> {
-        let refuse = |what: String| Err(Error::invalid(format!("recipe '{}': {what}", self.name)));
+        let refuse = |what: String| Err(Error::recipe(&self.name, what));
         if self.coarsest.start == Start::Inherit {
             return refuse("the coarsest level cannot inherit (it has no coarser level)".into());
         }
@@ -560,14 +563,10 @@ impl Preset {
             ));
         }
         if let (Some(round), Some(coarsest)) = (self.round_stencil(), levels.last()) {
-            round_fits(round, coarsest)
-                .map_or(Ok(()), |why| Err(Error::invalid(format!("recipe '{}': {why}", self.name))))?;
+            round_fits(round, coarsest).map_or(Ok(()), |why| Err(Error::recipe(&self.name, why)))?;
         }
         if self.uses(MetricKind::Colour) && levels.iter().any(|l| l.colour.is_none()) {
-            return Err(Error::invalid(format!(
-                "recipe '{}' matches colours, which Sample::load_colours builds",
-                self.name
-            )));
+            return Err(Error::recipe(&self.name, "it matches colours, which Sample::load_colours builds"));
         }
         Ok(())
     }

@@ -12,8 +12,10 @@ use super::target::{Slot, TargetLevel};
 
 /// The coarser level while refining: its state and metric, for two-level neighbourhoods
 /// (a candidate (x, y) is compared there at (x/2, y/2)).
-pub(crate) struct Parent<'a, M> {
+pub struct Parent<'a, M> {
+    /// The coarser level's synthesized state.
     pub state: &'a State,
+    /// The distance on the coarser level.
     pub metric: M,
     /// Where the parent neighbourhood comes from: the level's narrow parent templates
     /// (`None`), or this coarser level's own templates at the parent vertex (Turk's F(n, 1)).
@@ -47,8 +49,9 @@ fn masked<'a>(slots: &'a [Slot], mask: Mask, template: usize, scratch: &'a mut V
     }
 }
 
-/// A vertex's square template (and parent neighbourhood) under a metric.
-pub(crate) struct SquareMatch<'a, M: Metric> {
+/// A vertex's square template (and parent neighbourhood) under a metric: the
+/// [`VertexMatch`] of Tong's, Turk's and Wei and Levoy's neighbourhoods.
+pub struct SquareMatch<'a, M: Metric> {
     level: &'a TargetLevel,
     sample: &'a SampleLevel,
     metric: &'a M,
@@ -60,7 +63,9 @@ pub(crate) struct SquareMatch<'a, M: Metric> {
 }
 
 impl<'a, M: Metric> SquareMatch<'a, M> {
-    pub(crate) fn new(
+    /// Matches `level`'s templates under `mask` with `metric` against `sample`, and with a
+    /// parent neighbourhood on the coarser level where `parent` is given.
+    pub fn new(
         level: &'a TargetLevel,
         sample: &'a SampleLevel,
         metric: &'a M,

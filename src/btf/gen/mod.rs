@@ -12,7 +12,7 @@ pub mod trace;
 
 use crate::btf::{Btf, Direction, DirectionPair, DirectionSet};
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use glam::Vec3;
 use half::f16;
 use materials::{unit, Bricks, Material, Pebbles, Weave};
@@ -81,14 +81,15 @@ impl GenParams {
     /// Checks the size and the samples per pixel; [`generate`] does it first.
     pub fn validate(&self) -> Result<()> {
         if !(4..=2048).contains(&self.size) {
-            return Err(Error::invalid(format!("size {} is outside 4..=2048 pixels", self.size)));
+            return Err(Error::out_of_range(Param::SampleSize, self.size, "outside 4..=2048 pixels"));
         }
         let root = (self.samples_per_pixel as f64).sqrt().round() as usize;
         if root == 0 || root * root != self.samples_per_pixel || root > 8 {
-            return Err(Error::invalid(format!(
-                "samples per pixel {} must be a square number from 1 to 64",
-                self.samples_per_pixel
-            )));
+            return Err(Error::out_of_range(
+                Param::SamplesPerPixel,
+                self.samples_per_pixel,
+                "must be a square number from 1 to 64",
+            ));
         }
         Ok(())
     }

@@ -91,7 +91,7 @@ impl Matrix {
         let total: u64 = ranges.iter().map(|r| r.end - r.start).sum();
         let row_bytes = self.cols as u64 * self.scalar.size();
         let mut out = Array2::<f32>::zeros((total as usize, self.cols));
-        let flat = out.as_slice_mut().ok_or_else(|| Error::invalid("factor buffer is not contiguous"))?;
+        let flat = out.as_slice_mut().ok_or_else(|| Error::internal("factor buffer is not contiguous"))?;
         let mut raw = Vec::new();
         let mut filled = 0usize;
         for r in ranges {

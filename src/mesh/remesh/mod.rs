@@ -20,7 +20,7 @@ pub use stats::{edge_length_stats, EdgeLengthStats};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::Mesh;
 use crate::progress::{Progress, Silent};
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use halfedge::Halfedges;
 
 /// How to remesh.
@@ -59,7 +59,7 @@ pub fn remesh_to_edge_length(mesh: &Mesh, length: f32) -> Result<Mesh> {
 /// Remeshes `mesh` to about `n` vertices (10 iterations).
 pub fn remesh_to_vertex_count(mesh: &Mesh, n: usize) -> Result<Mesh> {
     if n < 4 {
-        return Err(Error::invalid(format!("cannot remesh to {n} vertices: at least 4 are needed")));
+        return Err(Error::out_of_range(Param::Vertices, n, "at least 4 are needed to remesh"));
     }
     remesh(mesh, &RemeshParams::vertex_count(mesh, n), &Silent)
 }
@@ -106,14 +106,15 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams, progress: &dyn Progress) -> Re
 
 fn check_length(mesh: &Mesh, length: f32) -> Result<()> {
     if !(length.is_finite() && length > 0.0) {
-        return Err(Error::invalid(format!("the target edge length must be positive, not {length}")));
+        return Err(Error::out_of_range(Param::EdgeLength, length, "must be positive"));
     }
     let estimate = 2.0 * mesh.surface_area() / (3f64.sqrt() * f64::from(length).powi(2));
     if estimate > MAX_VERTICES {
-        return Err(Error::invalid(format!(
-            "a target edge length of {length} would make about {estimate:.3e} vertices \
-             (more than {MAX_VERTICES:.0e}); choose a longer one"
-        )));
+        return Err(Error::out_of_range(
+            Param::EdgeLength,
+            length,
+            format!("would make about {estimate:.3e} vertices (more than {MAX_VERTICES:.0e}); choose a longer one"),
+        ));
     }
     Ok(())
 }

@@ -35,7 +35,7 @@ impl AtlasLayout {
         max_layers: u32,
     ) -> Result<AtlasLayout> {
         if width == 0 || height == 0 || width > max_dim || height > max_dim {
-            return Err(Error::invalid(format!(
+            return Err(Error::gpu(format!(
                 "sample images of {width}x{height} do not fit this GPU's {max_dim}-texel textures"
             )));
         }
@@ -52,7 +52,7 @@ impl AtlasLayout {
             layers += 1;
         }
         if layers > max_layers {
-            return Err(Error::invalid(format!(
+            return Err(Error::gpu(format!(
                 "{count} sample images of {width}x{height} need {layers} texture layers of {max_dim}² \
                  but this GPU allows {max_layers}"
             )));

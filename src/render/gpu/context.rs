@@ -47,7 +47,7 @@ impl Gpu {
             ..Default::default()
         };
         let adapter =
-            pollster::block_on(instance.request_adapter(&options)).map_err(|_| Error::invalid(NO_ADAPTER))?;
+            pollster::block_on(instance.request_adapter(&options)).map_err(|_| Error::gpu(NO_ADAPTER))?;
         // Multisampled float targets need the adapter's own format capabilities, beyond
         // what WebGPU guarantees everywhere.
         let specific = wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES;
@@ -58,7 +58,7 @@ impl Gpu {
             ..Default::default()
         };
         let (device, queue) = pollster::block_on(adapter.request_device(&descriptor))
-            .map_err(|e| Error::invalid(format!("cannot open the GPU {}: {e}", adapter.get_info().name)))?;
+            .map_err(|e| Error::gpu(format!("cannot open the GPU {}: {e}", adapter.get_info().name)))?;
         let errors = Arc::new(Mutex::new(None));
         let slot = errors.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -72,7 +72,7 @@ impl Gpu {
     /// Fails with the first error wgpu reported since the last call, if any.
     pub fn check(&self) -> Result<()> {
         match self.errors.lock().ok().and_then(|mut e| e.take()) {
-            Some(e) => Err(Error::invalid(format!("the GPU {} failed: {e}", self.name()))),
+            Some(e) => Err(Error::gpu(format!("the GPU {} failed: {e}", self.name()))),
             None => Ok(()),
         }
     }
@@ -86,7 +86,7 @@ impl Gpu {
         let invalid = pollster::block_on(validation.pop());
         let out_of_memory = pollster::block_on(memory.pop());
         if let Some(e) = invalid.or(out_of_memory) {
-            return Err(Error::invalid(format!("{} cannot {what}: {}", self.name(), one_line(&e))));
+            return Err(Error::gpu(format!("{} cannot {what}: {}", self.name(), one_line(&e))));
         }
         built
     }
@@ -97,7 +97,7 @@ impl Gpu {
         let allows = |f: F, usage: U| self.format_features(f).allowed_usages.contains(usage);
         let first = |candidates: &[F], usage: U, what: &str| {
             candidates.iter().copied().find(|&f| allows(f, usage)).ok_or_else(|| {
-                Error::invalid(format!("{} supports none of {candidates:?} as {what}", self.name()))
+                Error::gpu(format!("{} supports none of {candidates:?} as {what}", self.name()))
             })
         };
         Ok(Formats {

@@ -89,7 +89,7 @@ impl FactorLayout {
     pub fn check(&self, limits: &wgpu::Limits) -> Result<()> {
         let max = limits.max_texture_dimension_2d;
         if self.width > max || self.height > max || self.layers > limits.max_texture_array_layers {
-            return Err(Error::invalid(format!(
+            return Err(Error::gpu(format!(
                 "the sample's texel factors need {} texture layers of {}x{} but this GPU allows {} layers of \
                  at most {max}x{max}",
                 self.layers, self.width, self.height, limits.max_texture_array_layers

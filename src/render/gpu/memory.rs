@@ -84,7 +84,7 @@ pub fn limit(kind: wgpu::DeviceType) -> Result<Option<(u64, String)>> {
 pub fn check_binding(what: &str, bytes: u64, limits: &wgpu::Limits) -> Result<()> {
     let max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     if bytes > max {
-        return Err(Error::invalid(format!(
+        return Err(Error::gpu(format!(
             "{what} need {} in one buffer but this GPU binds at most {}",
             gib(bytes),
             gib(max)

@@ -423,7 +423,7 @@ fn sample_values(
         }
         Values::Factors { layout, .. } => {
             let f =
-                factors.ok_or_else(|| Error::invalid("the sample's factors were not kept for the GPU"))?;
+                factors.ok_or_else(|| Error::internal("the sample's factors were not kept for the GPU"))?;
             Ok((factors::upload_texels(device, queue, f, layout), factors::image_table(f, layout)))
         }
     }

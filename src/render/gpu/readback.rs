@@ -54,7 +54,7 @@ pub fn read_bytes(
     (width, height): (u32, u32),
     bytes_per_pixel: u32,
 ) -> Result<Vec<u8>> {
-    let failed = |what: String| Error::invalid(format!("GPU readback failed: {what}"));
+    let failed = |what: String| Error::gpu(format!("GPU readback failed: {what}"));
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
@@ -90,7 +90,7 @@ pub fn read(
                 *out = f16::from_le_bytes([h[0], h[1]]).to_f32();
             }
         }
-        other => return Err(Error::invalid(format!("GPU readback: {other:?} is not a float format"))),
+        other => return Err(Error::gpu(format!("GPU readback: {other:?} is not a float format"))),
     }
     Ok(frame)
 }

@@ -15,7 +15,7 @@
 //! leave it are not considered, so a patch never crosses the sample's border. A tileable
 //! sample is rotated with wrap-around, and every position is a placement.
 
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use glam::{Affine2, Mat2, Vec2};
 use rayon::prelude::*;
 use realfft::num_complex::Complex;
@@ -43,7 +43,9 @@ impl ColourSpace {
             "lab" => Ok(ColourSpace::Lab),
             "hsv" => Ok(ColourSpace::Hsv),
             "rgb" => Ok(ColourSpace::Rgb),
-            _ => Err(Error::invalid(format!("'{name}': the colour space is lab, hsv or rgb"))),
+            _ => {
+                Err(Error::out_of_range(Param::ColourSpace, format!("'{name}'"), "expected lab, hsv or rgb"))
+            }
         }
     }
 
@@ -268,7 +270,7 @@ fn fft_len(n: usize) -> usize {
 }
 
 fn fft_error(e: realfft::FftError) -> Error {
-    Error::invalid(format!("internal FFT error: {e}"))
+    Error::internal(format!("FFT: {e}"))
 }
 
 impl Fitter {

@@ -43,7 +43,7 @@ pub mod quality;
 pub mod relax;
 
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 use fit::{ColourSpace, FitImage, Fitter};
 use glam::{Vec2, Vec3};
 use graph::{SurfaceGraph, NONE};
@@ -122,11 +122,14 @@ impl SolerParams {
         if !positive(self.band) || self.band > 64.0 {
             return Err(Error::out_of_range(crate::Param::Band, self.band, "between 0 and 64 texels"));
         }
-        if !positive(self.max_flat_error) || !positive(self.max_fit_error) {
-            return Err(Error::invalid("the flattening and fitting thresholds must be positive"));
+        if !positive(self.max_flat_error) {
+            return Err(Error::out_of_range(Param::MaxDistortion, self.max_flat_error, "must be positive"));
+        }
+        if !positive(self.max_fit_error) {
+            return Err(Error::out_of_range(Param::FitThreshold, self.max_fit_error, "must be positive"));
         }
         if self.orientation.is_some_and(|d| !d.is_finite()) {
-            return Err(Error::out_of_range(crate::Param::PatchOrientation, "", "a finite angle in degrees"));
+            return Err(Error::out_of_range(Param::PatchOrientation, "", "a finite angle in degrees"));
         }
         Ok(())
     }
@@ -211,7 +214,7 @@ pub fn map_mesh(
         None => None,
         Some(f) if f >= triangles.len() => {
             return Err(Error::out_of_range(
-                crate::Param::FirstFace,
+                Param::FirstFace,
                 f,
                 format!(
                     "{} has {} faces (0 to {})",
@@ -223,7 +226,7 @@ pub fn map_mesh(
         }
         Some(f) if graph.graph_face[f] == NONE => {
             return Err(Error::out_of_range(
-                crate::Param::FirstFace,
+                Param::FirstFace,
                 f,
                 format!("that face of {} has no area; choose another", path.display()),
             ))

@@ -72,7 +72,10 @@ pub fn write_uv_map(
         "ply" => ply_bytes(positions, triangles, mapping, provenance.sample, &comments),
         "obj" => obj_bytes(positions, triangles, mapping, provenance.sample, &comments),
         _ => {
-            return Err(Error::invalid(format!("{}: the output must be a .ply or .obj file", path.display())))
+            return Err(Error::output_refused(
+                path,
+                format!("{}: the output must be a .ply or .obj file", path.display()),
+            ))
         }
     };
     std::fs::write(into, &bytes).map_err(|e| Error::io(path, e))
