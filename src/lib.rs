@@ -59,6 +59,7 @@
 
 pub mod analysis;
 pub mod btf;
+pub mod cache;
 pub mod error;
 pub mod eval;
 pub mod export;

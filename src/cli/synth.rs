@@ -3,10 +3,11 @@
 use super::progress::Bars;
 use super::{usage, usage_of};
 use anyhow::{Context, Result};
+use btfsynth::cache::CacheDir;
 use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
 use btfsynth::mesh::field::Orientation;
 use btfsynth::synth::plane::{synthesize_plane, write_plane};
-use btfsynth::synth::round::{MarchingCache, MarchingOrigin};
+use btfsynth::synth::round::MarchingOrigin;
 use btfsynth::synth::session::{SearchChoice, SynthSessionBuilder};
 use btfsynth::synth::surface_map::{
     build_pyramid_cached, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
@@ -108,14 +109,16 @@ pub struct SynthArgs {
     /// Also write timings, candidate-set sizes and mean best distances per level here.
     #[arg(long, value_name = "FILE.json")]
     report: Option<PathBuf>,
-    /// Keep the round-neighbourhood marching of each mesh level in this directory (created
-    /// if missing) and reuse it on later runs with the same mesh, density and levels: a new
-    /// --orient then skips the marching. Files are named by a hash of what the marching
-    /// depends on (about 4.5 KB per vertex of the finest mesh, all levels together); a
-    /// damaged file is recomputed with a warning. Used only in surface mode by presets with
-    /// round neighbourhoods (chen2008); ignored otherwise.
-    #[arg(long, value_name = "DIR")]
-    marching_cache: Option<PathBuf>,
+    /// Keep each mesh level's remeshing, templates and (for presets with round
+    /// neighbourhoods, chen2008) marching in this directory (created if missing), and reuse
+    /// them on later runs with the same mesh and density: another analysis of the same size,
+    /// preset or seed skips the remeshing, and the same frames (same seed, or the same
+    /// --orient axis or constraints) skip the templates too. Files are named by a hash of
+    /// exactly what each depends on (about 2.3 KB per vertex of the finest mesh for
+    /// remeshing and templates, 4.5 KB more for marchings); nothing is pruned; a damaged file
+    /// is recomputed with a warning. Surface mode only; ignored on planes.
+    #[arg(long, value_name = "DIR", alias = "marching-cache")]
+    cache: Option<PathBuf>,
     /// Replace the output if it exists.
     #[arg(long)]
     force: bool,
@@ -225,9 +228,9 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
     }
     session.check_sample(&sample).map_err(usage_of)?;
     let params = session.params().clone();
-    let marching_cache = match &args.marching_cache {
-        Some(dir) if args.mesh.is_some() && params.preset.rounds() => {
-            Some(MarchingCache::open(dir).map_err(|e| usage(format!("--marching-cache: {e}")))?)
+    let cache = match &args.cache {
+        Some(dir) if args.mesh.is_some() => {
+            Some(CacheDir::open(dir).map_err(|e| usage(format!("--cache: {e}")))?)
         }
         _ => None,
     };
@@ -243,7 +246,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
                 (&analysis, staged_output.path()),
                 (mesh, &orientation),
                 &sample,
-                (&params, marching_cache.as_ref()),
+                (&params, cache.as_ref()),
                 density,
                 levels,
                 &mut params_json,
@@ -285,12 +288,9 @@ fn soler2002(
     bars: &Bars,
 ) -> Result<()> {
     let Some(mesh) = &args.mesh else { return Err(usage("--method soler2002 maps a MESH (not --plane)")) };
-    if args.vertices.is_some()
-        || args.recipe.is_some()
-        || args.preset != "appearance"
-        || args.marching_cache.is_some()
+    if args.vertices.is_some() || args.recipe.is_some() || args.preset != "appearance" || args.cache.is_some()
     {
-        return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --marching-cache"));
+        return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --cache"));
     }
     let common = super::soler::Common {
         analysis,
@@ -340,7 +340,7 @@ fn surface(
     (analysis, ply): (&Path, &Path),
     (mesh_path, orientation): (&Path, &Orientation),
     sample: &Sample,
-    (params, marching_cache): (&SynthParams, Option<&MarchingCache>),
+    (params, cache): (&SynthParams, Option<&CacheDir>),
     density: Density,
     levels: usize,
     params_json: &mut serde_json::Value,
@@ -354,15 +354,19 @@ fn surface(
         check_vertices(estimate.round() as usize, flag, levels, args.neighborhood)
             .with_context(|| format!("{} at {density}", mesh_path.display()))?;
     }
-    let pyramid = build_pyramid_cached(&mesh, density, levels, orientation, params, marching_cache, bars)
+    let pyramid = build_pyramid_cached(&mesh, density, levels, orientation, params, cache, bars)
         .with_context(|| format!("preparing {}", mesh_path.display()))?;
     let marchings: Vec<Option<MarchingOrigin>> =
         pyramid.targets.iter().map(|t| t.round.as_ref().map(|r| r.origin)).collect();
     for (l, level) in pyramid.levels.iter().enumerate() {
-        let marching = match marchings[l] {
+        let mut marching = match marchings[l] {
             Some(o) => format!(", marching {} in {:.2} s", o.source, o.seconds),
             None => String::new(),
         };
+        if cache.is_some() {
+            let [remeshing, templates] = pyramid.sources[l];
+            marching = format!(", remeshing {remeshing}, templates {templates}{marching}");
+        }
         eprintln!(
             "  mesh level {l}: {} vertices, texel {:.4e}, {}{marching}",
             level.mesh.vertex_count(),
@@ -378,7 +382,8 @@ fn surface(
     params_json["mesh_levels"] = pyramid
         .levels
         .iter()
-        .map(|l| serde_json::json!({"vertices": l.mesh.vertex_count(), "texel": l.texel, "edge_mean": l.edges.mean, "edge_min": l.edges.min, "edge_max": l.edges.max, "edge_cv": l.edges.coefficient_of_variation}))
+        .zip(&pyramid.sources)
+        .map(|(l, [remeshing, templates])| serde_json::json!({"vertices": l.mesh.vertex_count(), "texel": l.texel, "edge_mean": l.edges.mean, "edge_min": l.edges.min, "edge_max": l.edges.max, "edge_cv": l.edges.coefficient_of_variation, "remeshing": remeshing, "templates": templates}))
         .collect();
     if marchings.iter().any(Option::is_some) {
         params_json["marching"] = serde_json::json!(marchings);

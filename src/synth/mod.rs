@@ -19,6 +19,7 @@ pub mod neighbourhood;
 pub mod pass;
 pub mod patches;
 pub mod plane;
+pub mod pyramid_cache;
 pub mod recipe;
 pub mod round;
 pub mod round_pass;

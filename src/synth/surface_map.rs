@@ -5,11 +5,13 @@
 //! and the engine runs coarse to fine. Output: a binary PLY of the finest mesh.
 
 use super::engine::State;
+use super::pyramid_cache::{remeshed, templates, templates_key, LevelShape};
 use super::round::{MarchedLevel, MarchingCache};
 use super::surface::{link_levels, surface_level};
 use super::target::TargetLevel;
 use super::{synthesize, LevelReport, Sample, SynthParams};
 use crate::analysis::knn::parent_size;
+use crate::cache::{CacheDir, Source};
 use crate::mesh::field::{frames, Orientation};
 use crate::mesh::frames::Frames;
 use crate::mesh::ply::{self, PropertyData, VertexProperty};
@@ -74,6 +76,13 @@ pub struct MeshLevel {
     pub edges: EdgeLengthStats,
 }
 
+impl MeshLevel {
+    /// What the level's templates are flattened from.
+    pub fn shape(&self) -> LevelShape<'_> {
+        LevelShape { mesh: &self.mesh, frames: &self.frames, texel: self.texel }
+    }
+}
+
 /// The synthesis meshes, finest first, with their engine-side levels.
 pub struct SurfacePyramid {
     /// The meshes, finest first.
@@ -82,6 +91,9 @@ pub struct SurfacePyramid {
     pub targets: Vec<TargetLevel>,
     /// Seconds spent remeshing, framing and building templates.
     pub seconds: [f64; 3],
+    /// Per level, where its remeshing and its templates came from (computed, or read from
+    /// a cache).
+    pub sources: Vec<[Source; 2]>,
 }
 
 /// Refuses finest meshes beyond this many vertices (about 14 GB at synthesis' peak).
@@ -123,14 +135,16 @@ pub fn build_pyramid(
     build_pyramid_cached(mesh, density, levels, orientation, params, None, progress)
 }
 
-/// As [`build_pyramid`], reading and storing round-neighbourhood marchings in `marching_cache`.
+/// As [`build_pyramid`], reading and storing in `cache` each level's remeshing, templates
+/// and links ([`super::pyramid_cache`]) and, for presets with round neighbourhoods, its
+/// marching ([`super::round::MarchingCache`]).
 pub fn build_pyramid_cached(
     mesh: &Mesh,
     density: Density,
     levels: usize,
     orientation: &Orientation,
     params: &SynthParams,
-    marching_cache: Option<&MarchingCache>,
+    cache: Option<&CacheDir>,
     progress: &dyn Progress,
 ) -> Result<SurfacePyramid> {
     let texel = density.texel(mesh)?;
@@ -143,7 +157,7 @@ pub fn build_pyramid_cached(
     }
     check_memory(estimate)?;
     let mut seconds = [0.0; 3];
-    let mut meshes = Vec::with_capacity(levels);
+    let (mut meshes, mut sources) = (Vec::with_capacity(levels), Vec::with_capacity(levels));
     for l in 0..levels {
         let started = Instant::now();
         let edge = texel * (1 << l) as f32;
@@ -152,43 +166,63 @@ pub fn build_pyramid_cached(
             Density::Vertices(n) => RemeshParams::vertex_count(mesh, (n >> (2 * l)).max(4)),
             _ => RemeshParams::edge_length(edge),
         };
-        let remeshed = remesh(mesh, &target, progress)?.with_normals();
+        let (remeshed, source) = remeshed(cache, mesh, &target, || remesh(mesh, &target, progress))?;
+        let remeshed = remeshed.with_normals();
         seconds[0] += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let level_frames = frames(&remeshed, orientation, params.seed)?;
         seconds[1] += started.elapsed().as_secs_f64();
         let edges = edge_length_stats(&remeshed);
         meshes.push(MeshLevel { mesh: remeshed, frames: level_frames, texel: edge, edges });
+        sources.push([source, Source::Computed]);
     }
     let started = Instant::now();
-    let mut targets = meshes
-        .iter()
-        .map(|m| surface_level(&m.mesh, &m.frames, m.texel, params.neighborhood))
-        .collect::<Result<Vec<_>>>()?;
-    let parent_template = parent_size(params.neighborhood);
-    for l in 0..levels.saturating_sub(1) {
-        let (fine, coarse) = (&meshes[l], &meshes[l + 1]);
-        let coarse_templates = surface_level(&coarse.mesh, &coarse.frames, coarse.texel, parent_template)?;
-        link_levels(
-            &fine.mesh,
-            &fine.frames,
-            &mut targets[l],
-            &coarse.mesh,
-            &coarse.frames,
-            coarse_templates,
-            fine.texel,
-        )?;
+    let mut targets = Vec::with_capacity(levels);
+    for (l, level_sources) in sources.iter_mut().enumerate() {
+        let (target, source) = level_templates(&meshes, l, params.neighborhood, cache)?;
+        targets.push(target);
+        level_sources[1] = source;
     }
     if params.preset.rounds() {
         // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
+        let marchings = cache.map(|dir| MarchingCache::in_dir(dir.clone()));
         for (target, m) in targets.iter_mut().zip(&meshes) {
             let stencil = params.preset.round_stencil().expect("rounds() found one");
-            let marched = MarchedLevel::with_cache(&m.mesh, &m.frames, m.texel, stencil, marching_cache);
+            let marched = MarchedLevel::with_cache(&m.mesh, &m.frames, m.texel, stencil, marchings.as_ref());
             target.round = Some(marched?);
         }
     }
     seconds[2] = started.elapsed().as_secs_f64();
-    Ok(SurfacePyramid { levels: meshes, targets, seconds })
+    Ok(SurfacePyramid { levels: meshes, targets, seconds, sources })
+}
+
+/// Level `l`'s templates (side `template`) and, below the coarsest level, its links and
+/// parent templates, through `cache` where one is given.
+fn level_templates(
+    meshes: &[MeshLevel],
+    l: usize,
+    template: usize,
+    cache: Option<&CacheDir>,
+) -> Result<(TargetLevel, Source)> {
+    let (fine, coarse) = (&meshes[l], meshes.get(l + 1));
+    let parent_template = parent_size(template);
+    let key = templates_key(fine.shape(), template, coarse.map(|c| (c.shape(), parent_template)));
+    templates(cache, key, || {
+        let mut target = surface_level(&fine.mesh, &fine.frames, fine.texel, template)?;
+        if let Some(c) = coarse {
+            let coarse_templates = surface_level(&c.mesh, &c.frames, c.texel, parent_template)?;
+            link_levels(
+                &fine.mesh,
+                &fine.frames,
+                &mut target,
+                &c.mesh,
+                &c.frames,
+                coarse_templates,
+                fine.texel,
+            )?;
+        }
+        Ok(target)
+    })
 }
 
 /// Synthesizes the surface texton map of `pyramid` from `sample`.

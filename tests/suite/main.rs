@@ -22,7 +22,7 @@ mod gen;
 mod interrupt;
 mod isotropic;
 mod loaders;
-mod marching_cache;
+mod mesh_cache;
 mod mesh_cli;
 mod modules;
 mod outputs;

@@ -1,6 +1,7 @@
-//! `synth --marching-cache DIR`: the round-neighbourhood marching of every mesh level is
-//! computed once, stored, and read back by a run with another texture direction, which
-//! then writes exactly the bytes a run without the cache writes.
+//! `synth --cache DIR` (once `--marching-cache`): every mesh level's remeshing, templates
+//! and, for round neighbourhoods, marching are computed once, stored, and read back by a
+//! later run on the same mesh, which then writes exactly the bytes a run without the cache
+//! writes.
 
 use crate::common;
 
@@ -34,7 +35,7 @@ fn synth(
         report.to_str().unwrap(),
     ];
     if let Some(cache) = cache {
-        args.extend(["--marching-cache", cache.to_str().unwrap()]);
+        args.extend(["--cache", cache.to_str().unwrap()]);
     }
     let r = btfsynth(&args);
     let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
@@ -45,9 +46,18 @@ fn synth(
     (out, sources, stderr)
 }
 
-/// The cache's files, sorted, with their bytes.
+/// The cache's marching files, sorted, with their bytes.
 fn cached_files(cache: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(cache).unwrap().map(|e| e.unwrap().path()).collect();
+    cached(cache, "marching-")
+}
+
+/// The cache's files whose name starts with `kind`, sorted, with their bytes.
+fn cached(cache: &Path, kind: &str) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_name().unwrap().to_string_lossy().starts_with(kind))
+        .collect();
     files.sort();
     files.into_iter().map(|p| (p.clone(), std::fs::read(p).unwrap())).collect()
 }
@@ -112,40 +122,58 @@ fn an_unwritable_cache_directory_is_a_usage_error_before_any_work() {
     let r = btfsynth(
         &[&args[..], &["--marching-cache", cache.to_str().unwrap(), "-o", out.to_str().unwrap()]].concat(),
     );
-    assert_usage_error(&r, "--marching-cache");
+    assert_usage_error(&r, "--cache");
     assert!(!out.exists());
 }
 
-/// Presets without round neighbourhoods have no marching: the flag leaves no directory.
+/// Planes have no mesh: the flag leaves no directory there. On a mesh, a preset without
+/// round neighbourhoods stores remeshings and templates only; another seed reads the
+/// remeshings (its frames, and so its templates, are its own), and the same seed reads
+/// both; every cached run writes the bytes of a run without the cache.
 #[test]
-fn the_cache_is_ignored_without_round_neighbourhoods() {
+fn remeshings_and_templates_are_read_back_by_runs_that_share_them() {
     let dir = tempfile::tempdir().unwrap();
     let analysis = analyze_gravel_crop(dir.path(), "gravel");
     let (out, cache) = (dir.path().join("plane"), dir.path().join("cache"));
+    let a = analysis.to_str().unwrap();
     let r = btfsynth(&[
         "synth",
-        analysis.to_str().unwrap(),
+        a,
         "--plane",
         "32x32",
-        "--preset",
-        "chen2008",
-        "--marching-cache",
+        "--cache",
         cache.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let r = btfsynth(&[
-        "synth",
-        analysis.to_str().unwrap(),
-        BUNNY,
-        "--vertices",
-        "3000",
-        "--marching-cache",
-        cache.to_str().unwrap(),
-        "-o",
-        dir.path().join("appearance.ply").to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(!cache.exists());
+    let run = |name: &str, seed: &str, cached: bool| {
+        let (out, report) = (dir.path().join(format!("{name}.ply")), dir.path().join(format!("{name}.json")));
+        let mut args = vec!["synth", a, BUNNY, "--vertices", "3000", "--seed", seed];
+        args.extend(["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()]);
+        if cached {
+            args.extend(["--cache", cache.to_str().unwrap()]);
+        }
+        let r = btfsynth(&args);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let levels = report["params"]["mesh_levels"].as_array().unwrap().clone();
+        let sources: Vec<String> = levels
+            .iter()
+            .map(|l| format!("{} {}", l["remeshing"], l["templates"]).replace('"', ""))
+            .collect();
+        (std::fs::read(out).unwrap(), sources)
+    };
+    let (cold, sources) = run("cold", "1", true);
+    assert_eq!(sources, ["computed computed"; 2]);
+    assert_eq!((cached(&cache, "remesh-").len(), cached(&cache, "templates-").len()), (2, 2));
+    assert!(cached_files(&cache).is_empty(), "no marching without round neighbourhoods");
+    let (other_seed, sources) = run("other-seed", "2", true);
+    assert_eq!(sources, ["cached computed"; 2]);
+    let (warm, sources) = run("warm", "1", true);
+    assert_eq!(sources, ["cached cached"; 2]);
+    assert!(warm == cold, "the cached templates gave other bytes than fresh ones");
+    let (plain, _) = run("plain", "2", false);
+    assert!(plain == other_seed, "the cached remeshing gave other bytes than a fresh one");
 }
