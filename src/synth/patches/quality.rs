@@ -253,9 +253,13 @@ struct Window {
 
 /// A close-up of the surface around file face `face`, resampled as [`seam_windows`]
 /// resamples its windows (in that face's texture frame, one sample texel per pixel) but
-/// `side` pixels across (odd): the pixels where the patch changes are drawn red, those off
-/// the surface black. None for a face without area.
-pub fn close_up(surface: &MappedSurface, (face, side): (u32, usize)) -> Result<Option<Picture>> {
+/// `side` pixels across (odd): with `borders`, the pixels where the patch changes are drawn
+/// red; those off the surface black. None for a face without area.
+pub fn close_up(
+    surface: &MappedSurface,
+    (face, side): (u32, usize),
+    borders: bool,
+) -> Result<Option<Picture>> {
     let resampler = Resampler::new(surface)?;
     let g = resampler.graph.graph_face.get(face as usize).copied().unwrap_or(NONE);
     if g == NONE {
@@ -272,7 +276,7 @@ pub fn close_up(surface: &MappedSurface, (face, side): (u32, usize)) -> Result<O
                 || (y + 1 < side && at(x, y + 1) != me && at(x, y + 1) != NONE);
             match me {
                 NONE => [0.0; 3],
-                _ if changes => [1.0, 0.0, 0.0],
+                _ if changes && borders => [1.0, 0.0, 0.0],
                 _ => [w.values[i * 3], w.values[i * 3 + 1], w.values[i * 3 + 2]],
             }
         })
