@@ -158,8 +158,8 @@ fn main() {
     );
     for l in m.report.levels.iter().filter(|l| l.tried > 0) {
         println!(
-            "  level {}: {} to cover, {} mapped ({} at random, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
-            l.level, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
+            "  level {}: {} to cover, {} mapped ({} at random, {} continuing a neighbour, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
+            l.level, l.tried, l.mapped, l.started, l.continued, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
         );
     }
     println!(

@@ -531,9 +531,13 @@ mod tests {
         let (matched, matched_jump, report) = measure(true);
         let (random, random_jump, _) = measure(false);
         let mapped: Vec<usize> = report.levels.iter().map(|l| l.mapped).collect();
+        let continued: Vec<usize> = report.levels.iter().map(|l| l.continued).collect();
         eprintln!(
-            "matched {matched:?} jump {matched_jump:?}\nrandom  {random:?} jump {random_jump:?}\nmapped per level {mapped:?}"
+            "matched {matched:?} jump {matched_jump:?}\nrandom  {random:?} jump {random_jump:?}\nmapped per level {mapped:?}, of which continuing a neighbour {continued:?}"
         );
+        // Clusters larger than a face continue their neighbours too, not only single faces.
+        let last = report.levels.len().saturating_sub(1);
+        assert!(report.levels[..last].iter().any(|l| l.continued > 0), "{continued:?}");
         assert!(matched.border_windows > 100 && matched.interior_windows > 100, "{matched:?}");
         assert!(matched_jump.1 > 1000 && random_jump.1 > 1000, "{matched_jump:?} {random_jump:?}");
         assert!(matched_jump.0 < 0.5 * random_jump.0, "matched {matched_jump:?} random {random_jump:?}");
