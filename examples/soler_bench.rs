@@ -4,14 +4,15 @@
 //! beside the same patches placed at random.
 //!
 //!   cargo run --release --example soler_bench -- PHOTO MESH [--crop N] [--across K]
-//!       [--threshold T] [--distortion D] [--band B] [--colour lab|hsv|rgb] [--no-relax]
+//!       [--threshold T] [--distortion D] [--band B] [--rotations R] [--colour lab|hsv|rgb] [--no-relax]
 //!       [--seed S] [--seams N] [--close-ups SHEET.png] [--no-baseline]
 //!
 //! The sample is the photograph's top-left N×N crop (default 128), mapped at K sample
 //! widths across the mesh's largest side (default 4). `--seams N` lists the N seams (borders
 //! between two patches) of largest jump, at least a texel long (default 10); `--close-ups`
-//! writes a sheet of the matched mapping's listed seams, 41 texels around each (borders red,
-//! left to right, top to bottom in the list's order, 4 pixels per texel).
+//! writes a sheet of the matched mapping's listed seams, 41 texels around each, twice: with
+//! the borders drawn red, then the texture alone (left to right, top to bottom in the list's
+//! order, 4 pixels per texel).
 
 use btfsynth::btf::image_io::srgb_to_linear;
 use btfsynth::eval::Picture;
@@ -70,6 +71,7 @@ fn main() {
         max_flat_error: flag("--distortion")
             .map_or(defaults.max_flat_error, |v| v.parse().expect("--distortion")),
         band: flag("--band").map_or(defaults.band, |v| v.parse().expect("--band")),
+        rotations: flag("--rotations").map_or(defaults.rotations, |v| v.parse().expect("--rotations")),
         relax: !has("--no-relax"),
         seed: flag("--seed").map_or(0, |v| v.parse().expect("--seed")),
         colour,
@@ -132,10 +134,15 @@ fn main() {
         breakdown(&windows, &m.level);
         let seams =
             seams(&mesh.positions, &mesh.triangles, &m.corner_uv, &m.cluster, &fit).expect("measured");
+        by_jump(&windows, &seams);
         let listed = worst_seams(&seams, &windows, &m, scale, worst);
         if let Some(path) = sheet.as_ref().filter(|_| matching) {
-            let pictures: Vec<Picture> =
-                listed.iter().filter_map(|&f| close_up(&surface, (f, 41)).expect("close-up")).collect();
+            // Each seam twice: its borders drawn, then the texture alone.
+            let pictures: Vec<Picture> = listed
+                .iter()
+                .flat_map(|&f| [true, false].map(|b| close_up(&surface, (f, 41), b).expect("close-up")))
+                .flatten()
+                .collect();
             write_sheet(&pictures, path);
         }
         let (jump, n) =
@@ -151,8 +158,8 @@ fn main() {
     );
     for l in m.report.levels.iter().filter(|l| l.tried > 0) {
         println!(
-            "  level {}: {} to cover, {} mapped ({} at random, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
-            l.level, l.tried, l.mapped, l.started, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
+            "  level {}: {} to cover, {} mapped ({} at random, {} continuing a neighbour, {} faces), split {} not disc, {} distorted, {} too large, {} poor fit, {} unreached; fit error median {:.3}; {:.2} s",
+            l.level, l.tried, l.mapped, l.started, l.continued, l.faces, l.not_disc, l.distorted, l.too_large, l.poor_fit, l.unreached, l.median_fit_error, l.seconds
         );
     }
     println!(
@@ -231,11 +238,11 @@ fn worst_seams(seams: &[Seam], windows: &[SeamWindow], m: &PatchMapping, scale: 
     order.iter().take(n).map(|s| s.faces[0]).collect()
 }
 
-/// The close-ups side by side, five to a row, each texel 4 pixels.
+/// The close-ups side by side, six to a row, each texel 4 pixels.
 fn write_sheet(pictures: &[Picture], path: &str) {
     const ZOOM: usize = 4;
     let Some(side) = pictures.first().map(|p| p.width) else { return };
-    let (columns, gap) = (5.min(pictures.len()), 4);
+    let (columns, gap) = (6.min(pictures.len()), 4);
     let rows = pictures.len().div_ceil(columns);
     let cell = side * ZOOM + gap;
     let mut sheet = image::RgbImage::new((columns * cell) as u32, (rows * cell) as u32);
@@ -253,4 +260,38 @@ fn write_sheet(pictures: &[Picture], path: &str) {
     sheet.save(&tmp).expect("sheet");
     std::fs::rename(&tmp, path).expect("sheet");
     println!("  close-ups of {} seams in {path}", pictures.len());
+}
+
+/// Border windows by the largest jump of the seams between the patches they show, beside
+/// the interior: how much of the ratio the seams' own mismatch explains.
+fn by_jump(windows: &[SeamWindow], seams: &[Seam]) {
+    let jump: std::collections::HashMap<(u32, u32), f64> =
+        seams.iter().map(|s| (s.patches, s.jump)).collect();
+    let worst = |w: &SeamWindow| {
+        let mut most = f64::NAN;
+        for (i, &a) in w.patches.iter().enumerate() {
+            for &b in &w.patches[i + 1..] {
+                if let Some(&j) = jump.get(&(a.min(b), a.max(b))) {
+                    most = if most.is_nan() { j } else { most.max(j) };
+                }
+            }
+        }
+        most
+    };
+    let interior: Vec<SeamWindow> = windows.iter().filter(|w| w.patches.len() == 1).cloned().collect();
+    let inside = split(&interior).interior;
+    for (lo, hi) in [(0.0, 0.05), (0.05, 0.15), (0.15, 0.3), (0.3, 0.6), (0.6, f64::INFINITY)] {
+        let part: Vec<SeamWindow> = windows
+            .iter()
+            .filter(|w| w.patches.len() > 1 && (worst(w) >= lo && worst(w) < hi))
+            .cloned()
+            .collect();
+        let q = split(&part);
+        println!(
+            "    seam jump {lo:.2}..{hi:.2}     border {:.5} ({:>4}), ratio to the interior {:.2}",
+            q.border,
+            q.border_windows,
+            q.border / inside
+        );
+    }
 }

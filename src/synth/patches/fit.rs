@@ -212,6 +212,28 @@ impl Mask {
     pub fn count(&self) -> usize {
         self.support.iter().filter(|&&j| j > 0.0).count()
     }
+
+    /// The mean squared difference per support pixel (summed over channels, as
+    /// [`Placement::error`]) between the mask and `image` seen through `map` (mask pixels →
+    /// sample coordinates).
+    pub fn error_at(&self, image: &FitImage, map: Affine2) -> f32 {
+        let (w, h) = (self.width, self.height);
+        let mut value = vec![0f32; image.channels];
+        let mut total = 0f32;
+        for y in 0..h {
+            for x in 0..w {
+                if self.support[y * w + x] == 0.0 {
+                    continue;
+                }
+                image.sample(map.transform_point2(Vec2::new(x as f32, y as f32)), &mut value);
+                for (c, v) in value.iter().enumerate() {
+                    let d = self.values[c * w * h + y * w + x] - v;
+                    total += d * d;
+                }
+            }
+        }
+        total / self.count().max(1) as f32
+    }
 }
 
 /// The best placement of a mask.

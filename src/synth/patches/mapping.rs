@@ -38,6 +38,8 @@ use std::time::Instant;
 enum Outcome {
     Mapped {
         started: bool,
+        /// Placed as the exact continuation of a textured neighbour.
+        continued: bool,
     },
     NotDisc,
     Distorted,
@@ -161,9 +163,10 @@ impl Mapper<'_> {
             round.errors[cluster.level as usize].extend(error);
             report.tried += usize::from(outcome != Outcome::Unreached);
             match outcome {
-                Outcome::Mapped { started } => {
+                Outcome::Mapped { started, continued } => {
                     report.mapped += 1;
                     report.started += usize::from(started);
+                    report.continued += usize::from(continued);
                     report.faces += cluster.faces.len();
                     progress.advance(cluster.faces.len() as u64);
                     for &n in &cluster.neighbours {
@@ -261,19 +264,51 @@ impl Mapper<'_> {
         if mask.is_none() && may_wait && self.params.matching && mapping.started_pieces.contains(&piece) {
             return Ok((Outcome::Unreached, None));
         }
-        // A single face first tries to continue one of its textured neighbours exactly: the
-        // finest level fills gaps, and a continuation leaves no seam on that side.
-        let continued = match &mask {
-            Some(mask) if single => self.best_continuation(&band, mask, origin, &local, mapping),
-            _ => None,
+        // Chart texels → pixels of a frame whose pixel (0, 0) is `origin`.
+        let to_frame = |origin: Vec2| {
+            Affine2::from_translation(-origin) * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)))
         };
-        let fitted = match (&mask, continued) {
-            (_, Some(found)) => Some(Ok(found)),
-            (Some(mask), None) => Some(self.fitter.fit(mask)?.map(|p| (self.fitter.to_sample(&p), p.error))),
-            (None, None) => None,
+        // A continuation of a textured neighbour leaves no seam on that side (border windows
+        // on such seams score as the interior), where the best fit of a mask drawn from two
+        // or more neighbours that do not continue each other leaves one on every side.
+        // A single face takes the continuation whose mask error is least (the finest level
+        // fills gaps). A larger cluster takes the continuation with the least output error
+        // (§4.4, before relaxation) if that is within the threshold; else the mask's best
+        // fit, unless a continuation's output error is still lower.
+        let (fitted, continued) = match &mask {
+            Some(mask) if single => match self.best_continuation(&band, mask, origin, &local, mapping) {
+                Some(found) => (Some(Ok(found.0)), true),
+                None => (Some(self.fitter.fit(mask)?.map(|p| self.fitter.to_sample(&p))), false),
+            },
+            Some(mask) => {
+                let output = |map: Affine2| {
+                    let to_sample = map * to_frame(origin);
+                    let uv: Vec<Vec2> = local.iter().map(|&p| to_sample.transform_point2(p)).collect();
+                    super::relax::output_error(self, c, chart, &uv, mapping).unwrap_or(f32::INFINITY)
+                };
+                let continuation = self
+                    .continuations(&band, origin, &local, mapping)
+                    .into_iter()
+                    .map(|map| (output(map), map))
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                match continuation {
+                    Some((e, map)) if e <= self.params.max_fit_error => (Some(Ok(map)), true),
+                    _ => match self.fitter.fit(mask)? {
+                        Ok(p) => {
+                            let fit = self.fitter.to_sample(&p);
+                            match continuation {
+                                Some((e, map)) if e < output(fit) => (Some(Ok(map)), true),
+                                _ => (Some(Ok(fit)), false),
+                            }
+                        }
+                        Err(unplaced) => (Some(Err(unplaced)), false),
+                    },
+                }
+            }
+            None => (None, false),
         };
         let (mask_to_sample, origin, fitted) = match fitted {
-            Some(Ok((map, _))) => (map, origin, true),
+            Some(Ok(map)) => (map, origin, true),
             Some(Err(Unplaced::TooLarge)) if !single => return Ok((Outcome::TooLarge, None)),
             // No textured neighbour (or a single face too large to match): a random placement.
             _ => {
@@ -287,9 +322,7 @@ impl Mapper<'_> {
             }
         };
         // Chart texels → mask pixels → sample.
-        let to_mask = Affine2::from_translation(-origin)
-            * Affine2::from_mat2(Mat2::from_diagonal(Vec2::new(1.0, -1.0)));
-        let mut to_sample = mask_to_sample * to_mask;
+        let mut to_sample = mask_to_sample * to_frame(origin);
         let image = &self.fitter.image;
         if image.tileable {
             // Keep coordinates near the sample: whole periods change nothing.
@@ -317,14 +350,14 @@ impl Mapper<'_> {
             mapping.mapped_by[f as usize] = c;
             mapping.face_uv[f as usize] = corners.map(|i| uv[i as usize]);
         }
-        Ok((Outcome::Mapped { started }, error))
+        Ok((Outcome::Mapped { started, continued: continued && fitted }, error))
     }
 
-    /// The best exact continuation of a textured neighbour for a single face: per
-    /// neighbouring patch in the band, the rotation and translation that carry the band's
-    /// mask positions onto that patch's own sample coordinates (least squares), scored on
-    /// the whole mask; only placements that keep the face inside a sample that does not tile.
+    /// The best exact continuation of a textured neighbour for a single face (of
+    /// [`Mapper::continuations`], the one of least mask error), scored on the whole mask.
     /// Returns the mask → sample map and its error (as [`Fitter::fit`] measures it).
+    ///
+    /// [`Fitter::fit`]: super::fit::Fitter::fit
     fn best_continuation(
         &self,
         band: &[(u32, [Vec2; 3])],
@@ -334,13 +367,29 @@ impl Mapper<'_> {
         mapping: &Mapping,
     ) -> Option<(Affine2, f32)> {
         let image = &self.fitter.image;
+        self.continuations(band, origin, local, mapping)
+            .into_iter()
+            .map(|map| (map, mask.error_at(image, map)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// The exact continuations of the textured neighbours in `band`: per neighbouring patch,
+    /// the rotation and translation that carry the band's mask positions (chart texels
+    /// mirrored, minus `origin`) onto that patch's own sample coordinates (least squares),
+    /// as a mask → sample map; only those that keep the footprint (`local`) inside a sample
+    /// that does not tile. In the patches' order.
+    fn continuations(
+        &self,
+        band: &[(u32, [Vec2; 3])],
+        origin: Vec2,
+        local: &[Vec2],
+        mapping: &Mapping,
+    ) -> Vec<Affine2> {
+        let image = &self.fitter.image;
         let mut owners: Vec<u32> = band.iter().map(|(g, _)| mapping.mapped_by[*g as usize]).collect();
         owners.sort_unstable();
         owners.dedup();
-        let (w, h) = (mask.width, mask.height);
-        let count = mask.count().max(1) as f32;
-        let mut value = vec![0f32; image.channels];
-        let mut best: Option<(Affine2, f32)> = None;
+        let mut found = Vec::new();
         for owner in owners {
             let pairs: Vec<(Vec2, Vec2)> = band
                 .iter()
@@ -358,29 +407,11 @@ impl Mapper<'_> {
             });
             let rotation = Mat2::from_angle(cross.atan2(dot));
             let map = Affine2::from_mat2_translation(rotation, cs - rotation * cm);
-            let inside = local.iter().all(|&p| image.inside(map.transform_point2(mirror(p) - origin)));
-            if !inside {
-                continue;
-            }
-            let mut error = 0f32;
-            for y in 0..h {
-                for x in 0..w {
-                    if mask.support[y * w + x] == 0.0 {
-                        continue;
-                    }
-                    image.sample(map.transform_point2(Vec2::new(x as f32, y as f32)), &mut value);
-                    for (c, v) in value.iter().enumerate() {
-                        let d = mask.values[c * w * h + y * w + x] - v;
-                        error += d * d;
-                    }
-                }
-            }
-            let error = error / count;
-            if best.is_none_or(|(_, e)| error < e) {
-                best = Some((map, error));
+            if local.iter().all(|&p| image.inside(map.transform_point2(mirror(p) - origin))) {
+                found.push(map);
             }
         }
-        best
+        found
     }
 
     /// Whether a footprint (chart vertices in texels) could lie inside the sample at some

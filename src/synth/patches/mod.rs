@@ -148,6 +148,9 @@ pub struct LevelReport {
     pub mapped: usize,
     /// Of those, placed at random (no textured neighbour: a start).
     pub started: usize,
+    /// Of those, placed as the exact continuation of a textured neighbour (no seam on that
+    /// side) rather than by the mask's fit.
+    pub continued: usize,
     /// Faces mapped on this level.
     pub faces: usize,
     /// Given up, left to the next level: not a disc, or without a simple control polygon.

@@ -137,6 +137,9 @@ pub(super) fn relax(
                 let angle = rng.random_range(0.0..std::f32::consts::TAU);
                 let r = radius * rng.random::<f32>().sqrt();
                 let at = work[v] + r * Vec2::from_angle(angle);
+                if !image.inside(at) {
+                    continue;
+                }
                 let e = cost(v, at, &work);
                 if e < best.0 {
                     best = (e, at);
@@ -159,8 +162,10 @@ pub(super) fn relax(
 }
 
 /// Adds the border `moves` (chart vertex, displacement) to `uv`, spread into the cluster
-/// as a harmonic field; halves them (up to three times) where a face would fold.
+/// as a harmonic field; halves them (up to three times) where a face would fold or a
+/// coordinate leave a sample that does not tile (a continuation may lie against its edge).
 fn spread(m: &Mapper, c: u32, chart: &Chart, uv: &mut [Vec2], moves: &[(usize, Vec2)]) {
+    let image = &m.fitter.image;
     let cluster = &m.hierarchy.clusters[c as usize];
     let n = chart.vertices.len();
     let mut fixed = vec![false; n];
@@ -205,7 +210,8 @@ fn spread(m: &Mapper, c: u32, chart: &Chart, uv: &mut [Vec2], moves: &[(usize, V
             let after = signed(&moved, t);
             before != 0.0 && after * before <= 0.0
         });
-        if !folds {
+        let outside = moved.iter().zip(uv.iter()).any(|(&p, &q)| !image.inside(p) && image.inside(q));
+        if !folds && !outside {
             uv.copy_from_slice(&moved);
             return;
         }
