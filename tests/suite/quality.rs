@@ -35,7 +35,18 @@ fn plane(analysis: &Path, size: &str, out: &Path, extra: &[&str]) -> PathBuf {
     out.to_path_buf()
 }
 
+/// The figures of `result`: a plane through the library (what `eval --json` prints for it,
+/// checked in `eval_flags_a_tiled_copy_and_a_pixel_shuffle`), anything else through `eval`.
 fn eval(analysis: &Path, result: &Path) -> Value {
+    if result.join("plane.json").is_file() {
+        let evaluation = btfsynth::eval::report::evaluate_plane(analysis, result).unwrap();
+        return serde_json::from_str(&serde_json::to_string(&evaluation).unwrap()).unwrap();
+    }
+    eval_cli(analysis, result)
+}
+
+/// The figures `eval --json` prints for `result`.
+fn eval_cli(analysis: &Path, result: &Path) -> Value {
     let r = btfsynth(&["eval", s(analysis), s(result), "--json"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     serde_json::from_slice(&r.stdout).unwrap()
@@ -274,7 +285,8 @@ fn eval_flags_a_tiled_copy_and_a_pixel_shuffle() {
     let manifest = serde_json::json!({"kind": "plane", "width": w, "height": h,
         "params": {"neighborhood": 7}, "analysis_fingerprint": fingerprint});
     std::fs::write(tiled.join("plane.json"), manifest.to_string()).unwrap();
-    let q = eval(&analysis, &tiled);
+    let q = eval_cli(&analysis, &tiled);
+    assert_eq!(q, eval(&analysis, &tiled), "eval --json prints the library's figures");
     assert!(q["coords"]["copy"].as_f64().unwrap() >= 0.75, "a tiling of the whole band is flagged: {q}");
 
     // The sample's own pixels, shuffled: same colours, no patch of it exists in the sample.
