@@ -85,6 +85,14 @@ pub enum Candidates {
     Search,
     /// Every candidate texel, whatever the search given.
     Full,
+    /// Every candidate texel, found through Castellanos and Williams' dynamic kd-trees
+    /// (§6): the eigenvector transform keeps 20 components of each sample neighbourhood
+    /// (once per turn), and one tree per use count lets choosy sampling's penalty be
+    /// searched tree by tree. The choice is [`Candidates::Full`]'s (the transformed
+    /// distance bounds the full one from below), at a fraction of the comparisons. Only
+    /// for isotropic passes under [`Select::UsePenalty`] or [`Select::Argmin`], visited in
+    /// a sequential order ([`super::kdtrees`], [`Search::KdTrees`]).
+    KdTrees,
 }
 
 /// One pass over a level. Its neighbourhood holds only combinations the engine runs; in a
@@ -195,6 +203,25 @@ impl Pass {
         }
         if !(self.coherence_bias.is_finite() && self.coherence_bias >= 0.0) {
             return Some(format!("coherence_bias must be at least 0, not {}", self.coherence_bias));
+        }
+        self.kd_trees_problem()
+    }
+
+    /// Why the pass cannot search kd-trees, if it asks to: the trees hold isotropic
+    /// neighbourhoods, group texels by one use count (which Choosy's fair share, counting
+    /// the vertex's own texel apart, does not), and follow each choice as it is made.
+    fn kd_trees_problem(&self) -> Option<String> {
+        if self.candidates != Candidates::KdTrees {
+            return None;
+        }
+        if self.neighbourhood.stencil() != Stencil::Isotropic {
+            return Some("KdTrees candidates need the Isotropic stencil".into());
+        }
+        if matches!(self.select, Select::Choosy { .. }) {
+            return Some("KdTrees candidates need the UsePenalty or Argmin select, not Choosy".into());
+        }
+        if self.order == VisitOrder::Interleaved {
+            return Some("KdTrees candidates need a sequential order, not Interleaved".into());
         }
         None
     }
@@ -618,6 +645,7 @@ pub(crate) fn pass_search(pass: &Pass, asked: Search) -> Search {
     match pass.candidates {
         Candidates::Search => asked,
         Candidates::Full => Search::Full,
+        Candidates::KdTrees => Search::KdTrees,
     }
 }
 
