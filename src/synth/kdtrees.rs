@@ -69,6 +69,11 @@ impl Eigen {
         eigen.jitter = eigen.add_jitter();
         eigen.slot = vec![NONE; texel_count];
         eigen.texels.iter().enumerate().for_each(|(i, &q)| eigen.slot[q as usize] = i as u32);
+        tracing::debug!(
+            "eigenvector transform: {} candidates × {TURNS} turns, {EIGEN_DIMS} of {full} components hold {:.2}% of the variance",
+            eigen.texels.len(),
+            100.0 * eigen.captured
+        );
         eigen
     }
 
