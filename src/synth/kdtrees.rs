@@ -23,10 +23,16 @@ use nalgebra::{DMatrix, SymmetricEigen};
 /// fall 1000-fold by the twentieth).
 pub const EIGEN_DIMS: usize = 20;
 
+/// A tree point's coordinates: the kept components, then the length of what they leave
+/// out. The two parts' distances add up to at most the full one (orthogonal parts; the
+/// residuals' lengths differ by at most the residual of the difference), so the bound stays
+/// a bound and is tighter where a neighbourhood's detail lies outside the components.
+pub const TREE_DIMS: usize = EIGEN_DIMS + 1;
+
 /// Points per leaf of the kd-trees (kiddo's default).
 const BUCKET: usize = 32;
 
-type Tree = KdTree<f32, u32, EIGEN_DIMS, BUCKET, u32>;
+type Tree = KdTree<f32, u32, TREE_DIMS, BUCKET, u32>;
 
 /// Not a candidate texel.
 const NONE: u32 = u32::MAX;
@@ -39,7 +45,7 @@ pub struct Eigen {
     basis: Vec<f32>,
     /// Per candidate (index into `texels`) and turn, the transformed neighbourhood plus
     /// its jitter.
-    points: Vec<[f32; EIGEN_DIMS]>,
+    points: Vec<[f32; TREE_DIMS]>,
     texels: Vec<u32>,
     /// Per texel, its index in `texels`, or [`NONE`].
     slot: Vec<u32>,
@@ -77,18 +83,27 @@ impl Eigen {
         eigen
     }
 
-    /// `row` (weighted, in the query's point order) transformed.
-    fn project(&self, row: &[f32]) -> [f32; EIGEN_DIMS] {
+    /// `row` (weighted, in the query's point order) transformed, with its residual length.
+    fn project(&self, row: &[f32]) -> [f32; TREE_DIMS] {
         let full = self.mean.len();
-        std::array::from_fn(|k| {
-            let e = &self.basis[k * full..(k + 1) * full];
-            e.iter().zip(row).zip(&self.mean).map(|((e, x), m)| e * (x - m)).sum()
-        })
+        // In f64: the residual is a difference of two lengths, which f32 would round by more
+        // than a close match's distance.
+        let centred: Vec<f64> = row.iter().zip(&self.mean).map(|(x, m)| f64::from(x - m)).collect();
+        let components: [f64; EIGEN_DIMS] = std::array::from_fn(|k| {
+            let e = self.basis.get(k * full..(k + 1) * full).unwrap_or(&[]);
+            e.iter().zip(&centred).map(|(&e, x)| f64::from(e) * x).sum()
+        });
+        let kept: f64 = components.iter().map(|v| v * v).sum();
+        let length: f64 = centred.iter().map(|v| v * v).sum();
+        let mut out = [0f32; TREE_DIMS];
+        out.iter_mut().zip(&components).for_each(|(o, &c)| *o = c as f32);
+        out[EIGEN_DIMS] = (length - kept).max(0.0).sqrt() as f32;
+        out
     }
 
     /// A query: the vertex's neighbourhood `own` (`POINTS × dims`, every point known)
     /// weighted and transformed.
-    pub fn query(&self, own: &[f32]) -> [f32; EIGEN_DIMS] {
+    pub fn query(&self, own: &[f32]) -> [f32; TREE_DIMS] {
         let mut row = own.to_vec();
         weigh(&mut row, self.dims);
         self.project(&row)
@@ -106,12 +121,12 @@ impl Eigen {
                 *v += step * ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5);
             }
         }
-        0.5 * step * (EIGEN_DIMS as f32).sqrt()
+        0.5 * step * (TREE_DIMS as f32).sqrt()
     }
 
     /// A lower bound of candidate `q`'s full distance to `query` (least over its turns), or
     /// 0 for a texel that is no candidate.
-    pub fn bound(&self, query: &[f32; EIGEN_DIMS], q: u32) -> f32 {
+    pub fn bound(&self, query: &[f32; TREE_DIMS], q: u32) -> f32 {
         let Some(&slot) = self.slot.get(q as usize).filter(|&&s| s != NONE) else { return 0.0 };
         let points = &self.points[slot as usize * TURNS..][..TURNS];
         let nearest = points
@@ -225,7 +240,7 @@ impl<'e> UseTrees<'e> {
     /// infinite: the tree is then read in growing batches.
     pub fn search(
         &self,
-        query: &[f32; EIGEN_DIMS],
+        query: &[f32; TREE_DIMS],
         mut radius: impl FnMut(u32) -> f32,
         mut visit: impl FnMut(u32, f32) -> Flow,
     ) {
@@ -238,17 +253,17 @@ impl<'e> UseTrees<'e> {
                     visit(self.eigen.texels[hit.item as usize / TURNS], bound * bound) == Flow::Next
                 })
             };
-            if r.is_finite() {
-                let reach = (r.max(0.0).sqrt() + self.eigen.jitter).powi(2);
-                let mut hits = tree.within_unsorted::<SquaredEuclidean>(query, reach);
-                hits.sort_unstable_by(|a, b| a.distance.total_cmp(&b.distance));
-                offer(&hits);
-                continue;
-            }
+            // Nearest first in growing batches: a batch stops the walk at its n-th nearest,
+            // and the caller leaves most trees within the first.
+            let reach =
+                if r.is_finite() { (r.max(0.0).sqrt() + self.eigen.jitter).powi(2) } else { f32::INFINITY };
             let (mut n, mut seen) = (16usize, 0usize);
             loop {
-                let hits = tree.nearest_n::<SquaredEuclidean>(query, n);
-                if !offer(&hits[seen..]) || hits.len() < n {
+                let hits = match std::num::NonZeroUsize::new(n).filter(|_| reach.is_finite()) {
+                    Some(most) => tree.nearest_n_within::<SquaredEuclidean>(query, reach, most, true),
+                    None => tree.nearest_n::<SquaredEuclidean>(query, n),
+                };
+                if !offer(&hits[seen.min(hits.len())..]) || hits.len() < n {
                     break;
                 }
                 (seen, n) = (hits.len(), n * 4);
