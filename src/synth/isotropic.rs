@@ -326,8 +326,7 @@ impl<'a> IsoMatch<'a> {
     ) -> (Best, usize) {
         let eigen = trees.eigen();
         if self.known.contains(&false) {
-            let best = self.scan(seeds, factor, true, (f32::INFINITY, 0, 0));
-            return (self.scan(eigen.texels(), factor, true, best), seeds.len() + eigen.texels().len());
+            return (self.scan(eigen.texels(), factor, true, (f32::INFINITY, 0, 0)), eigen.texels().len());
         }
         let query = eigen.query(&self.own);
         let mut seeds: Vec<(f32, u32)> = seeds
@@ -338,10 +337,10 @@ impl<'a> IsoMatch<'a> {
         seeds.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let (mut best, mut compared) = ((f32::INFINITY, 0, 0), 0);
         for &(low, q) in &seeds {
-            if low >= best.0 {
+            if low > best.0 {
                 break;
             }
-            best = self.scan(&[q], factor, false, best);
+            best = self.consider(q, factor(q), best);
             compared += 1;
         }
         let best = std::cell::Cell::new(best);
@@ -356,20 +355,29 @@ impl<'a> IsoMatch<'a> {
                 return Flow::Next;
             }
             // Every texel left in this tree starts a new copy: the same factor for all.
-            let (f, so_far) = (factor(q), best.get().0);
-            if bound * f >= so_far {
+            let f = factor(q);
+            if bound * f > best.get().0 {
                 return Flow::Leave;
             }
             seen[q as usize] = visit;
             compared += 1;
-            let (d, turn) = self.distance(q, so_far / f);
-            if d * f < so_far {
-                best.set((d * f, q, turn));
-            }
+            best.set(self.consider(q, f, best.get()));
             Flow::Next
         });
         self.seen = seen;
         (best.get(), compared)
+    }
+
+    /// `best` or texel `q` under `factor` `f`, whichever is less; a tie goes to the lower
+    /// texel index, as in the exhaustive scan's index order (the trees meet texels in
+    /// another order, and on a striped sample ties are many).
+    fn consider(&self, q: u32, f: f32, best: Best) -> Best {
+        let (d, turn) = self.distance(q, best.0 / f);
+        if d * f < best.0 || (d * f == best.0 && q < best.1) {
+            (d * f, q, turn)
+        } else {
+            best
+        }
     }
 
     /// Texel `q` was chosen: under [`Search::KdTrees`] it moves one tree up, as the pass's
