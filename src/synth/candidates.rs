@@ -15,6 +15,11 @@ pub enum Search {
     },
     /// Every pixel of the sample whose neighbourhood lies inside it (Table 2's full search).
     Full,
+    /// Every candidate, as [`Search::Full`], found through Castellanos and Williams' dynamic
+    /// kd-trees over the eigenvector-transformed neighbourhoods (§6, [`super::kdtrees`]):
+    /// the same choice, comparing only the candidates that can win. Isotropic passes under
+    /// [`super::Select::UsePenalty`] or [`super::Select::Argmin`], in a sequential order.
+    KdTrees,
 }
 
 impl Search {
@@ -23,7 +28,7 @@ impl Search {
     pub fn list_length(&self, sample: &SampleLevel) -> usize {
         match *self {
             Search::KCoherence { k } => k.min(sample.k),
-            Search::Full => sample.k,
+            Search::Full | Search::KdTrees => sample.k,
         }
     }
 }

@@ -58,6 +58,41 @@ pub(crate) struct Usage {
     /// [`Select::UsePenalty`] the times it was chosen in this pass (empty for Argmin).
     count: Vec<u32>,
     rule: UsageRule,
+    /// Under a search of every candidate through kd-trees ([`Search::KdTrees`]), which
+    /// compares only some of them: the level's floor, kept as choices are made.
+    level: Option<Tally>,
+}
+
+/// How many of the level's candidate texels have each use count, so that the least count
+/// over the level costs no scan per visit.
+struct Tally {
+    candidate: Vec<bool>,
+    with_count: Vec<u32>,
+    floor: u32,
+}
+
+impl Tally {
+    fn new(texels: usize, candidates: &[u32]) -> Self {
+        let mut candidate = vec![false; texels];
+        candidates.iter().for_each(|&q| candidate[q as usize] = true);
+        Tally { candidate, with_count: vec![candidates.len() as u32], floor: 0 }
+    }
+
+    /// A candidate chosen `before` times was chosen again.
+    fn raise(&mut self, q: usize, before: u32) {
+        if !self.candidate[q] {
+            return;
+        }
+        let c = before as usize;
+        if self.with_count.len() == c + 1 {
+            self.with_count.push(0);
+        }
+        self.with_count[c] -= 1;
+        self.with_count[c + 1] += 1;
+        while self.with_count[self.floor as usize] == 0 {
+            self.floor += 1;
+        }
+    }
 }
 
 enum UsageRule {
@@ -77,7 +112,7 @@ impl Usage {
     pub(crate) fn new(sample: &SampleLevel, state: &State, radius: usize, select: Select) -> Self {
         let (width, texels) = (sample.width, sample.width * sample.height);
         match select {
-            Select::Argmin => Usage { width, count: Vec::new(), rule: UsageRule::Argmin },
+            Select::Argmin => Usage { width, count: Vec::new(), rule: UsageRule::Argmin, level: None },
             Select::Choosy { strength } => {
                 let mut count = vec![0u32; texels];
                 for &[x, y] in &state.uv {
@@ -85,12 +120,23 @@ impl Usage {
                 }
                 let candidates = full_candidates(sample, radius).len().max(1);
                 let fair = (state.uv.len() as f32 / candidates as f32).max(1.0);
-                Usage { width, count, rule: UsageRule::FairShare { fair, strength } }
+                Usage { width, count, rule: UsageRule::FairShare { fair, strength }, level: None }
             }
             Select::UsePenalty { base } => {
-                Usage { width, count: vec![0; texels], rule: UsageRule::Chosen { base } }
+                Usage { width, count: vec![0; texels], rule: UsageRule::Chosen { base }, level: None }
             }
         }
+    }
+
+    /// Under `search`, with [`Select::UsePenalty`]: [`Usage::floor`] is the least count over
+    /// the level's candidates within `radius` of the edge, whatever candidates it is given.
+    /// For [`Search::KdTrees`], whose visits compare only the candidates worth comparing
+    /// but choose among all of them, as the full search does.
+    pub(crate) fn over_level(mut self, search: Search, sample: &SampleLevel, radius: usize) -> Self {
+        if search == Search::KdTrees && matches!(self.rule, UsageRule::Chosen { .. }) {
+            self.level = Some(Tally::new(self.count.len(), &full_candidates(sample, radius)));
+        }
+        self
     }
 
     /// The least use count among `candidates`, c_min of [`Select::UsePenalty`] (0 for the
@@ -99,6 +145,9 @@ impl Usage {
     /// penalty stays relative to the least-used choice at hand, not to texels no vertex
     /// can reach.
     pub(crate) fn floor(&self, candidates: &[u32]) -> u32 {
+        if let Some(level) = &self.level {
+            return level.floor;
+        }
         match self.rule {
             UsageRule::Chosen { .. } => {
                 candidates.iter().filter_map(|&q| self.count.get(q as usize)).min().copied().unwrap_or(0)
@@ -133,7 +182,13 @@ impl Usage {
                 self.count[index(from)] -= 1;
                 self.count[index(to)] += 1;
             }
-            UsageRule::Chosen { .. } => self.count[index(to)] += 1,
+            UsageRule::Chosen { .. } => {
+                let before = self.count[index(to)];
+                self.count[index(to)] += 1;
+                if let Some(level) = &mut self.level {
+                    level.raise(index(to), before);
+                }
+            }
         }
     }
 }
@@ -230,5 +285,21 @@ pub(crate) mod tests {
         assert_eq!(usage.factor(6, [0, 0], usage.floor(&[5, 6])), 1.0);
         let argmin = Usage::new(&sample, &state, 1, Select::Argmin);
         assert_eq!(argmin.factor(5, [0, 0], argmin.floor(&[5])), 1.0);
+    }
+
+    /// Over the level (kd-trees), the floor is the least count of all candidates, whatever
+    /// few the visit is given, and it rises once every candidate was chosen.
+    #[test]
+    fn the_level_floor_counts_every_candidate() {
+        let sample = periodic_sample(4);
+        let state = State { labels: vec![0; 3], uv: vec![[0, 0]; 3] };
+        let select = Select::UsePenalty { base: 2.0 };
+        let mut usage = Usage::new(&sample, &state, 1, select).over_level(Search::KdTrees, &sample, 1);
+        usage.moved([0, 0], [5, 0]);
+        assert_eq!(usage.floor(&[5]), 0, "other texels were never chosen");
+        for q in 0..16 * 16 {
+            usage.moved([0, 0], [q % 16, q / 16]);
+        }
+        assert_eq!((usage.floor(&[5]), usage.floor(&[6])), (1, 1));
     }
 }

@@ -22,6 +22,7 @@
 
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
+use super::kdtrees::{Eigen, Flow, UseTrees};
 use super::metric::known_parts;
 use super::neighbourhood::Compared;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
@@ -34,6 +35,7 @@ use glam::Vec2;
 use rand_chacha::ChaCha8Rng;
 use std::f32::consts::TAU;
 use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Mutex, OnceLock};
 
 /// Points on each ring: the inner (radius 1 texel), then the outer (radius 2).
 pub const RING_POINTS: [usize; 2] = [12, 24];
@@ -166,6 +168,9 @@ pub fn inherit(
 pub struct IsoSample {
     dims: usize,
     values: Vec<f32>,
+    /// The eigenvector transform of the candidates' neighbourhoods, built by the first pass
+    /// that searches kd-trees ([`Search::KdTrees`]).
+    eigen: OnceLock<Eigen>,
 }
 
 impl IsoSample {
@@ -174,7 +179,15 @@ impl IsoSample {
         let offsets = layout_offsets(&layout());
         let values = resample_at_offsets(map, width, height, &offsets, halved_cell);
         let dims = map.dims;
-        IsoSample { dims, values }
+        IsoSample { dims, values, eigen: OnceLock::new() }
+    }
+
+    /// The eigenvector transform of `sample`'s candidate texels (this level's), built once.
+    pub fn eigen(&self, sample: &SampleLevel) -> &Eigen {
+        self.eigen.get_or_init(|| {
+            let texels = super::candidates::full_candidates(sample, REACH);
+            Eigen::new(texels, sample.width * sample.height, self.dims, |q| self.at(q))
+        })
     }
 
     /// Texel `q`'s (index y · width + x) neighbourhood.
@@ -237,7 +250,19 @@ pub struct IsoMatch<'a> {
     query: Query,
     /// The texels of the vertex's adjacent vertices (within [`ADJACENT`] texels).
     adjacent: Vec<u32>,
+    /// The pass's kd-trees, when it searches them ([`Search::KdTrees`]).
+    trees: Option<&'a Mutex<UseTrees<'a>>>,
+    /// Under the trees, the factor on a candidate that starts a new copy and was chosen
+    /// `excess` times more than the least-used: `base`^excess (1 + bias), as
+    /// [`super::engine::selection_factor`] gives it; a tree's search radius.
+    fresh: (f32, f32),
+    /// Per texel, the visit that compared it last (a tree yields each texel once per turn).
+    seen: Vec<u32>,
+    visit: u32,
 }
+
+/// The best candidate so far: scaled distance, texel, turn.
+type Best = (f32, u32, u8);
 
 /// Vertices this close are adjacent: the 8-neighbourhood on a grid, as `eval`'s smear
 /// counts pairs.
@@ -257,6 +282,109 @@ impl<'a> IsoMatch<'a> {
             known: Vec::new(),
             query: Query::default(),
             adjacent: Vec::new(),
+            trees: None,
+            fresh: (1.0, 0.0),
+            seen: Vec::new(),
+            visit: 0,
+        }
+    }
+
+    /// Searches the pass's kd-trees `trees` for every candidate texel, not only those
+    /// [`VertexMatch::choose`] is given.
+    /// `select` and `bias` are the pass's: the penalty on a tree's candidates.
+    pub fn with_trees(mut self, trees: &'a Mutex<UseTrees<'a>>, select: Select, bias: f32) -> Self {
+        self.seen = vec![0; self.sample.width * self.sample.height];
+        self.trees = Some(trees);
+        let base = if let Select::UsePenalty { base } = select { base } else { 1.0 };
+        self.fresh = (base, bias);
+        self
+    }
+
+    /// `best` improved by the candidates in `candidates`, each distance scaled by `factor`;
+    /// an adjacent vertex's texel is passed over when `avoid`.
+    fn scan(&self, candidates: &[u32], factor: &impl Fn(u32) -> f32, avoid: bool, mut best: Best) -> Best {
+        for &q in candidates.iter().filter(|q| !(avoid && self.adjacent.contains(q))) {
+            let f = factor(q);
+            let (d, turn) = self.distance(q, best.0 / f);
+            if d * f < best.0 {
+                best = (d * f, q, turn);
+            }
+        }
+        best
+    }
+
+    /// The best of every candidate texel, through the kd-trees (exact: [`super::kdtrees`]):
+    /// first `seeds`, which hold every candidate continuing a neighbour's copy (the one
+    /// cheaper factor), then each tree nearest first until its lower bound times its
+    /// penalty cannot win. A vertex with unknown points (past an edge) scans every
+    /// candidate: the transform needs all of them.
+    fn search_trees(
+        &mut self,
+        trees: &UseTrees,
+        seeds: &[u32],
+        factor: &impl Fn(u32) -> f32,
+    ) -> (Best, usize) {
+        let eigen = trees.eigen();
+        if self.known.contains(&false) {
+            return (self.scan(eigen.texels(), factor, true, (f32::INFINITY, 0, 0)), eigen.texels().len());
+        }
+        let query = eigen.query(&self.own);
+        let mut seeds: Vec<(f32, u32)> = seeds
+            .iter()
+            .filter(|q| !self.adjacent.contains(q))
+            .map(|&q| (eigen.bound(&query, q) * factor(q), q))
+            .collect();
+        seeds.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut best, mut compared) = ((f32::INFINITY, 0, 0), 0);
+        for &(low, q) in &seeds {
+            if low > best.0 {
+                break;
+            }
+            best = self.consider(q, factor(q), best);
+            compared += 1;
+        }
+        let best = std::cell::Cell::new(best);
+        self.visit = self.visit.wrapping_add(1);
+        let visit = self.visit;
+        let mut seen = std::mem::take(&mut self.seen);
+        seeds.iter().map(|s| &s.1).chain(&self.adjacent).for_each(|&q| seen[q as usize] = visit);
+        let (base, bias) = self.fresh;
+        let radius = |excess: u32| best.get().0 / (base.powi(excess.min(60) as i32) * (1.0 + bias));
+        trees.search(&query, radius, |q, bound| {
+            if seen[q as usize] == visit {
+                return Flow::Next;
+            }
+            // Every texel left in this tree starts a new copy: the same factor for all.
+            let f = factor(q);
+            if bound * f > best.get().0 {
+                return Flow::Leave;
+            }
+            seen[q as usize] = visit;
+            compared += 1;
+            best.set(self.consider(q, f, best.get()));
+            Flow::Next
+        });
+        self.seen = seen;
+        (best.get(), compared)
+    }
+
+    /// `best` or texel `q` under `factor` `f`, whichever is less; a tie goes to the lower
+    /// texel index, as in the exhaustive scan's index order (the trees meet texels in
+    /// another order, and on a striped sample ties are many).
+    fn consider(&self, q: u32, f: f32, best: Best) -> Best {
+        let (d, turn) = self.distance(q, best.0 / f);
+        if d * f < best.0 || (d * f == best.0 && q < best.1) {
+            (d * f, q, turn)
+        } else {
+            best
+        }
+    }
+
+    /// Texel `q` was chosen: under [`Search::KdTrees`] it moves one tree up, as the pass's
+    /// use count moves (every choice counts, [`Select::UsePenalty`]).
+    fn chose(&self, q: u32) {
+        if let Some(trees) = self.trees {
+            trees.lock().expect("a pass's trees").chose(q);
         }
     }
 
@@ -352,25 +480,26 @@ impl VertexMatch for IsoMatch<'_> {
         draw: impl FnOnce() -> [i32; 2],
     ) -> Choice {
         // Nothing known around the vertex: every candidate ties; start it at random.
-        if !self.known.contains(&true) || candidates.is_empty() {
+        if !self.known.contains(&true) || (candidates.is_empty() && self.trees.is_none()) {
             self.level.turns.set(self.v, 0);
-            return Choice { texel: Some(draw()), figure: 0.0, compared: candidates.len() };
+            let texel = draw();
+            self.chose((texel[1] as usize * self.sample.width + texel[0] as usize) as u32);
+            return Choice { texel: Some(texel), figure: 0.0, compared: candidates.len() };
         }
-        let mut best = (f32::INFINITY, 0u32, 0u8);
         // A neighbour's own texel would repeat it (a smear): turned copies resampled on the
         // square grid land there, which the sample's own copies never do.
-        let avoid = candidates.iter().any(|q| !self.adjacent.contains(q));
-        for &q in candidates.iter().filter(|q| !(avoid && self.adjacent.contains(q))) {
-            let f = factor(q);
-            let (d, turn) = self.distance(q, best.0 / f);
-            if d * f < best.0 {
-                best = (d * f, q, turn);
+        let (best, compared) = match self.trees {
+            Some(trees) => self.search_trees(&trees.lock().expect("a pass's trees"), candidates, &factor),
+            None => {
+                let avoid = candidates.iter().any(|q| !self.adjacent.contains(q));
+                (self.scan(candidates, &factor, avoid, (f32::INFINITY, 0, 0)), candidates.len())
             }
-        }
+        };
         let width = self.sample.width;
         let texel = [(best.1 as usize % width) as i32, (best.1 as usize / width) as i32];
         self.level.turns.set(self.v, best.2);
-        Choice { texel: Some(texel), figure: f64::from(best.0), compared: candidates.len() }
+        self.chose(best.1);
+        Choice { texel: Some(texel), figure: f64::from(best.0), compared }
     }
 }
 
@@ -388,7 +517,19 @@ pub fn isotropic_pass(
     schedule: &Schedule,
     rng: &mut ChaCha8Rng,
 ) -> PassStats {
-    let make = || IsoMatch::new(iso, sample, map);
+    // The trees follow each choice as it is made: a sequential order only (the recipe
+    // refuses others; an interleaved level without a colouring runs sequentially too).
+    let sequential = matches!(schedule, Schedule::Order(_));
+    let trees = (search == Search::KdTrees && sequential)
+        .then(|| Mutex::new(UseTrees::new(iso.sample.eigen(sample))));
+    let search = if search == Search::KdTrees && !sequential { Search::Full } else { search };
+    let make = || {
+        let matcher = IsoMatch::new(iso, sample, map);
+        match &trees {
+            Some(trees) => matcher.with_trees(trees, select, coherence_bias),
+            None => matcher,
+        }
+    };
     let plan = PassPlan { search, select, coherence_bias, mask: compared.mask() };
     run_scheduled_pass(level, state, sample, make, &plan, schedule, rng)
 }
@@ -501,6 +642,76 @@ mod tests {
             images.sort();
             images.dedup();
             assert_eq!(images.len(), offsets.len(), "turn {turn}");
+        }
+    }
+
+    /// A 64² crop of a shared photograph as a sample level of linear colours, or `None` (one
+    /// `skipped:` line) where the shared data is absent.
+    fn photo_level(test: &str, photo: &str) -> Option<(SampleLevel, AppearanceMap)> {
+        let path = crate::testdata::shared_data(test, photo)?;
+        let image = image::open(path).unwrap().to_rgb32f();
+        let (w, h) = (64usize, 64usize);
+        let colours: Vec<f32> =
+            (0..w * h).flat_map(|p| image.get_pixel((p % w) as u32, (p / w) as u32).0).collect();
+        let map = AppearanceMap::new(w, h, 3, &colours, false);
+        let mut sample = crate::synth::engine::tests::periodic_sample(4);
+        (sample.width, sample.height, sample.tileable, sample.labels) = (w, h, false, vec![0; w * h]);
+        Some((sample, map))
+    }
+
+    /// On real photographs the kd-trees choose what the exhaustive search chooses: each
+    /// vertex of a 40² plane of random texels picks among every candidate under choosy
+    /// sampling's penalty (counts as the choices go, base 2, every candidate fresh), once
+    /// by scanning all of them and once through the trees.
+    #[test]
+    fn the_kd_trees_choose_what_the_exhaustive_search_chooses_on_photographs() {
+        for photo in ["textures/gimp-Stone_stone33.png", "textures/sh3d-pebbles.jpg"] {
+            let test = "the_kd_trees_choose_what_the_exhaustive_search_chooses";
+            let Some((sample, map)) = photo_level(test, photo) else { return };
+            let (w, side) = (sample.width, 40usize);
+            let turns = Turns::zeros(side * side);
+            let target = RoundTarget::Grid { width: side, height: side, wraps: false };
+            let level = IsoLevel { target, sample: IsoSample::new(&map, w, sample.height), turns: &turns };
+            let eigen = level.sample.eigen(&sample);
+            assert!(eigen.captured > 0.8, "{photo}: 20 components hold {} of the variance", eigen.captured);
+            let all = eigen.texels().to_vec();
+            let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(5);
+            let uv = (0..side * side)
+                .map(|_| super::super::start::random_texel(&sample, REACH, &mut rng))
+                .collect();
+            let state = State { labels: vec![0; side * side], uv };
+            let trees = Mutex::new(UseTrees::new(eigen));
+            let (mut scan, mut tree) = (
+                IsoMatch::new(&level, &sample, &map),
+                IsoMatch::new(&level, &sample, &map).with_trees(
+                    &trees,
+                    Select::UsePenalty { base: 2.0 },
+                    1.0,
+                ),
+            );
+            let mut count = vec![0u32; w * sample.height];
+            let (mut same, mut compared, mut worst) = (0, 0, 1f64);
+            for v in 0..side * side {
+                let floor = all.iter().map(|&q| count[q as usize]).min().unwrap();
+                let factor = |q: u32| 2f32.powi((count[q as usize] - floor) as i32) * 2.0;
+                scan.prepare(v, &state, None);
+                tree.prepare(v, &state, None);
+                let a = scan.choose(&all, [0, 0], factor, || [0, 0]);
+                let b = tree.choose(&[], [0, 0], factor, || [0, 0]);
+                let index = |t: [i32; 2]| t[1] as usize * w + t[0] as usize;
+                let (ta, tb) = (a.texel.unwrap(), b.texel.unwrap());
+                same += usize::from(ta == tb);
+                worst = worst.max(b.figure / a.figure.max(1e-12));
+                compared += b.compared;
+                // The trees counted their own choice; where the two differ (a tie), they
+                // part by one count.
+                count[index(ta)] += 1;
+            }
+            let n = side * side;
+            assert!(same * 100 >= n * 99, "{photo}: {same} of {n} choices agree");
+            assert!(worst < 1.0 + 1e-3, "{photo}: a tree's choice is {worst}× the scan's");
+            let mean = compared as f64 / n as f64;
+            assert!(mean < all.len() as f64 / 3.0, "{photo}: {mean} of {} compared", all.len());
         }
     }
 

@@ -14,6 +14,7 @@ pub mod constrained;
 pub mod engine;
 pub(crate) mod flatten;
 pub mod isotropic;
+pub mod kdtrees;
 pub mod metric;
 pub mod neighbourhood;
 pub mod pass;
@@ -404,7 +405,7 @@ fn patches(
 fn capped(search: Search, sample: &SampleLevel) -> Search {
     match search {
         Search::KCoherence { k } => Search::KCoherence { k: k.min(sample.k) },
-        Search::Full => Search::Full,
+        other => other,
     }
 }
 

@@ -119,7 +119,8 @@ pub fn run_pass<V: VertexMatch>(
     rng: &mut ChaCha8Rng,
 ) -> PassStats {
     let pass = PassInputs::new(level, sample, plan, matcher.reach());
-    let mut usage = Usage::new(sample, state, pass.reach, plan.select);
+    let mut usage =
+        Usage::new(sample, state, pass.reach, plan.select).over_level(plan.search, sample, pass.reach);
     let mut scratch = VisitScratch::new(sample);
     let mut known = pass.known_mask();
     let mut sums = Sums::default();

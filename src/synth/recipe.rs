@@ -85,6 +85,14 @@ pub enum Candidates {
     Search,
     /// Every candidate texel, whatever the search given.
     Full,
+    /// Every candidate texel, found through Castellanos and Williams' dynamic kd-trees
+    /// (§6): the eigenvector transform keeps 20 components of each sample neighbourhood
+    /// (once per turn), and one tree per use count lets choosy sampling's penalty be
+    /// searched tree by tree. The choice is [`Candidates::Full`]'s (the transformed
+    /// distance bounds the full one from below), at a fraction of the comparisons. Only
+    /// for isotropic passes under [`Select::UsePenalty`] or [`Select::Argmin`], visited in
+    /// a sequential order ([`super::kdtrees`], [`Search::KdTrees`]).
+    KdTrees,
 }
 
 /// One pass over a level. Its neighbourhood holds only combinations the engine runs; in a
@@ -195,6 +203,25 @@ impl Pass {
         }
         if !(self.coherence_bias.is_finite() && self.coherence_bias >= 0.0) {
             return Some(format!("coherence_bias must be at least 0, not {}", self.coherence_bias));
+        }
+        self.kd_trees_problem()
+    }
+
+    /// Why the pass cannot search kd-trees, if it asks to: the trees hold isotropic
+    /// neighbourhoods, group texels by one use count (which Choosy's fair share, counting
+    /// the vertex's own texel apart, does not), and follow each choice as it is made.
+    fn kd_trees_problem(&self) -> Option<String> {
+        if self.candidates != Candidates::KdTrees {
+            return None;
+        }
+        if self.neighbourhood.stencil() != Stencil::Isotropic {
+            return Some("KdTrees candidates need the Isotropic stencil".into());
+        }
+        if matches!(self.select, Select::Choosy { .. }) {
+            return Some("KdTrees candidates need the UsePenalty or Argmin select, not Choosy".into());
+        }
+        if self.order == VisitOrder::Interleaved {
+            return Some("KdTrees candidates need a sequential order, not Interleaved".into());
         }
         None
     }
@@ -391,11 +418,14 @@ impl Preset {
     /// 12 and 24 points, proximity weights and the least distance over three 60° turns of
     /// the sample's neighbourhood, so a striped sample gives an isotropic result.
     ///
+    /// The coarsest level's exhaustive search runs through the paper's dynamic kd-trees over
+    /// eigenvector-transformed neighbourhoods (§6, [`Candidates::KdTrees`]): the same
+    /// choices, a fifteenth of the comparisons.
+    ///
     /// Departures (docs/castellanos.md): the stencil's points on circles of the rings' mean
     /// radii, resampled from the square sample grid, in place of the triangular grid's
     /// faces; the exhaustive search on the coarsest level only, k-coherence candidates (which
-    /// follow each neighbour's turn) on the finer ones (the paper's exhaustive search there
-    /// needs its kd-trees, §6); the
+    /// follow each neighbour's turn) on the finer ones; the
     /// inversion's blend across seams is not formed (a vertex starts from its inherited
     /// texel's colour, not from the projected colours of its neighbours' parents); and a
     /// coherence bias of 1, which the paper has not: without it 1.02% of adjacent pairs copy
@@ -412,7 +442,7 @@ impl Preset {
         Preset {
             name: "castellanos".into(),
             paper: "Castellanos and Williams, Automatic Synthesis of Isotropic Textures on Surfaces from Sample Images".into(),
-            coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Candidates::Full); 4] },
+            coarsest: LevelRecipe { start: Start::Random, passes: vec![pass(Candidates::KdTrees); 4] },
             finer: LevelRecipe { start: Start::Inherit, passes: vec![pass(Candidates::Search); 2] },
         }
     }
@@ -617,6 +647,7 @@ pub(crate) fn pass_search(pass: &Pass, asked: Search) -> Search {
     match pass.candidates {
         Candidates::Search => asked,
         Candidates::Full => Search::Full,
+        Candidates::KdTrees => Search::KdTrees,
     }
 }
 
@@ -730,6 +761,25 @@ mod tests {
         assert!(e.contains("circle"), "{e}");
     }
 
+    /// Kd-tree candidates: castellanos' coarsest level searches them; they need the
+    /// isotropic stencil, a selection with one penalty per use count, and a sequential order.
+    #[test]
+    fn kd_tree_candidates_the_engine_cannot_run_are_refused() {
+        let castellanos = Preset::castellanos();
+        assert!(castellanos.coarsest.passes.iter().all(|p| p.candidates == Candidates::KdTrees));
+        assert_eq!(castellanos.to_json()["coarsest"]["passes"][0]["candidates"], "KdTrees");
+        let coarsest0 =
+            |edit: &dyn Fn(&mut PassRecord)| read_edited(&castellanos, &["coarsest"], |i| i == 0, edit);
+        refused_as(coarsest0(&|r| r.stencil = Stencil::Square), "need the Isotropic stencil");
+        refused_as(coarsest0(&|r| r.select = Select::Choosy { strength: 0.3 }), "not Choosy");
+        refused_as(coarsest0(&|r| r.order = VisitOrder::Interleaved), "not Interleaved");
+        assert!(coarsest0(&|r| r.select = Select::Argmin).is_ok());
+        assert_eq!(
+            pass_search(&castellanos.coarsest.passes[0], Search::KCoherence { k: 4 }),
+            Search::KdTrees
+        );
+    }
+
     /// The isotropic stencil runs with colours or appearance vectors on one level, beside
     /// round passes only of its own 2 circles; castellanos records it, and a recipe
     /// recorded before it (no stencil field) still reads, as the square template.
@@ -760,6 +810,10 @@ mod tests {
         for level in ["coarsest", "finer"] {
             old[level]["passes"].as_array_mut().unwrap().iter_mut().for_each(|p| {
                 p.as_object_mut().unwrap().remove("stencil");
+                // Recipes of that time knew no kd-trees either.
+                if p["candidates"] == "KdTrees" {
+                    p["candidates"] = "Full".into();
+                }
             });
         }
         let read = Preset::from_json(&old.to_string()).unwrap();
