@@ -37,19 +37,8 @@ use std::f32::consts::TAU;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Mutex, OnceLock};
 
-/// Points on each ring: the inner (radius 1 texel), then the outer (radius 2).
-pub const RING_POINTS: [usize; 2] = [12, 24];
-
-/// Points of the stencil, centre excluded (the paper's 36 faces).
-pub const POINTS: usize = RING_POINTS[0] + RING_POINTS[1];
-
-/// Eq. 7's proximity weight per ring: the mean of exp(−½ (d / 1.3 σ_k)²) over the paper's
-/// 12 one-distant faces (d = 1, √3 and 2 spacings, 3, 6 and 3 of them) and its 24
-/// two-distant faces (√7, 3, 2√3 and √13, 6 each), σ_k one adjacent-face spacing.
-pub const BETA: [f32; 2] = [0.4684, 0.0615];
-
-/// The rotations compared: 0°, 60° and 120°.
-pub const TURNS: usize = 3;
+use super::isotropic_stencil::ring_of;
+pub use super::isotropic_stencil::{turned, BETA, POINTS, RING_POINTS, TURNS};
 
 /// The circles the mesh levels are marched for (defined beside the stencil in the recipe,
 /// which must know it without using this module).
@@ -67,23 +56,6 @@ pub fn layout() -> Vec<(usize, f32)> {
         .enumerate()
         .flat_map(|(ring, &n)| (0..n).map(move |k| (ring + 1, k as f32 / n as f32)))
         .collect()
-}
-
-/// Point `p`'s ring (0 inner, 1 outer) and its place on it.
-fn ring_of(p: usize) -> (usize, usize) {
-    if p < RING_POINTS[0] {
-        (0, p)
-    } else {
-        (1, p - RING_POINTS[0])
-    }
-}
-
-/// The point that point `p` moves to when the stencil turns by `turn` × 60°.
-pub fn turned(p: usize, turn: usize) -> usize {
-    let (ring, k) = ring_of(p);
-    let n = RING_POINTS[ring];
-    let first = if ring == 0 { 0 } else { RING_POINTS[0] };
-    first + (k + turn * n / 6) % n
 }
 
 /// Offset `o` (x along the texture, y down its rows, in texels) turned by `turn` × 60°, in

@@ -12,9 +12,9 @@
 //!
 //! With the isotropic neighbourhood's three turns each candidate texel contributes three
 //! points, one per turn: the sample's neighbourhood read in the order the query's points
-//! face under that turn ([`super::isotropic::turned`]).
+//! face under that turn ([`super::isotropic_stencil::turned`]).
 
-use super::isotropic::{turned, BETA, POINTS, TURNS};
+use super::isotropic_stencil::{turned, BETA, POINTS, RING_POINTS, TURNS};
 use kiddo::float::kdtree::KdTree;
 use kiddo::SquaredEuclidean;
 use nalgebra::{DMatrix, SymmetricEigen};
@@ -147,7 +147,7 @@ impl Eigen {
 /// are applied before the transform).
 fn weigh(row: &mut [f32], dims: usize) {
     for (p, values) in row.chunks_exact_mut(dims).enumerate() {
-        let w = BETA[usize::from(p >= super::isotropic::RING_POINTS[0])].sqrt();
+        let w = BETA[usize::from(p >= RING_POINTS[0])].sqrt();
         values.iter_mut().for_each(|v| *v *= w);
     }
 }

@@ -14,6 +14,7 @@ pub mod constrained;
 pub mod engine;
 pub(crate) mod flatten;
 pub mod isotropic;
+pub mod isotropic_stencil;
 pub mod kdtrees;
 pub mod metric;
 pub mod neighbourhood;

@@ -5,7 +5,7 @@
 //! links on the level's and the coarser level's meshes, frames and texels and on the
 //! template sizes. Their keys hash exactly those, so a run with another analysis of the same
 //! size, another preset or another seed finds the remeshing, and one whose frames are the
-//! same (the same seed, or an `--orient` axis or constraints, which no seed moves) finds the
+//! same (the same seed, or an orientation axis or constraints, which no seed moves) finds the
 //! templates too. A file's payload is the result's numbers, little-endian.
 
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
