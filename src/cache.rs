@@ -87,8 +87,14 @@ impl CacheDir {
         match std::fs::read(self.path(kind, key)) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Lookup::Missing,
             Err(e) => Lookup::Unusable(e.to_string()),
-            Ok(bytes) => match decode(kind, &bytes, key) {
-                Ok(payload) => Lookup::Found(payload.to_vec()),
+            // The payload is most of the file (tens of MB for a level's templates): cut the
+            // file's own buffer down to it rather than copying it.
+            Ok(mut bytes) => match payload_range(kind, &bytes, key) {
+                Ok(range) => {
+                    bytes.truncate(range.end);
+                    bytes.drain(..range.start);
+                    Lookup::Found(bytes)
+                }
                 Err(why) => Lookup::Unusable(why),
             },
         }
@@ -145,7 +151,13 @@ pub(crate) fn encode(kind: Kind, payload: &[u8], key: u64) -> Vec<u8> {
 }
 
 /// The payload in the file `bytes`, if it is a whole, undamaged file of `kind` for `key`.
+#[cfg(test)]
 pub(crate) fn decode(kind: Kind, bytes: &[u8], key: u64) -> std::result::Result<&[u8], String> {
+    payload_range(kind, bytes, key).map(|range| &bytes[range])
+}
+
+/// Where [`decode`]'s payload lies in `bytes`.
+fn payload_range(kind: Kind, bytes: &[u8], key: u64) -> std::result::Result<std::ops::Range<usize>, String> {
     let header = kind.magic.len() + 4 + 8 + 8;
     if bytes.len() < header + 8 || &bytes[..kind.magic.len()] != kind.magic {
         return Err(format!("not a {} cache file", kind.name));
@@ -165,7 +177,7 @@ pub(crate) fn decode(kind: Kind, bytes: &[u8], key: u64) -> std::result::Result<
     if word(bytes.len() - 8) != Fnv1a::of(payload) {
         return Err("the checksum does not match (the file is damaged)".into());
     }
-    Ok(payload)
+    Ok(header..bytes.len() - 8)
 }
 
 /// The 64-bit FNV-1a hash: stable across builds and platforms (std's hasher promises
