@@ -27,6 +27,7 @@ pub mod bvh;
 pub mod field;
 mod field_hierarchy;
 pub mod frames;
+pub mod layout;
 pub mod load;
 mod manifold;
 pub mod obj;

@@ -15,7 +15,8 @@ use crate::mesh::remesh::RemeshParams;
 use crate::mesh::Mesh;
 use crate::Result;
 
-const REMESH: Kind = Kind { magic: b"BTFREMSH", version: 1, name: "remesh" };
+// Version 2: remeshed vertices come in spatial order (`mesh::layout`).
+const REMESH: Kind = Kind { magic: b"BTFREMSH", version: 2, name: "remesh" };
 const TEMPLATES: Kind = Kind { magic: b"BTFTMPLT", version: 1, name: "templates" };
 
 /// One level's mesh, frames and texel size: what its templates are flattened from.

@@ -4,6 +4,7 @@
 //! halfedge are stored. Boundary edges have no opposite ([`NONE`]). Removed faces and
 //! vertices stay in the arrays, marked dead, until [`Halfedges::extract`].
 
+use crate::mesh::layout;
 use crate::mesh::Mesh;
 use glam::Vec3;
 
@@ -78,6 +79,16 @@ impl Halfedges {
             }
         }
         Halfedges::new(mesh.positions().to_vec(), mesh.triangles(), hint)
+    }
+
+    /// The same surface with its live vertices and faces renumbered in spatial order
+    /// ([`crate::mesh::layout`]); dead slots are dropped. (A renumbered manifold surface
+    /// stays manifold; should that ever fail, the structure is kept as it was.)
+    pub fn in_spatial_order(self) -> Halfedges {
+        let (pos, triangles, hint) = self.extract();
+        let (order, triangles) = layout::spatial_order(&pos, &triangles);
+        let (pos, hint) = (layout::permuted(&pos, &order), layout::permuted(&hint, &order));
+        Halfedges::new(pos, &triangles, hint).unwrap_or(self)
     }
 
     /// The live vertices (renumbered in order), their hints, and the live faces.
