@@ -145,15 +145,23 @@ pub fn synthesize(
         let coarse = state.take();
         let mut turns = None;
         let mut current = match (recipe.start, &coarse) {
-            (Start::Inherit, Some(coarse)) => match coarse_turns.take() {
-                Some(coarse_turns) => {
-                    let (inherited, level_turns) =
-                        isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
-                    turns = Some(level_turns);
-                    inherited
+            (Start::Inherit | Start::Jittered { .. }, Some(coarse)) => {
+                let inherited = match coarse_turns.take() {
+                    Some(coarse_turns) => {
+                        let (inherited, level_turns) =
+                            isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
+                        turns = Some(level_turns);
+                        inherited
+                    }
+                    None => start::inherit(target, coarse, level_sample, r),
+                };
+                match recipe.start {
+                    Start::Jittered { texels } => {
+                        start::jitter(inherited, level_sample, r, texels, rng.random())
+                    }
+                    _ => inherited,
                 }
-                None => start::inherit(target, coarse, level_sample, r),
-            },
+            }
             (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
             (Start::Patches { radius }, _) => {
                 // A patch narrower than the template is all seam: the templates that judge
@@ -168,7 +176,9 @@ pub fn synthesize(
                 let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
                 patches(metric, target, level_sample, (r, patch, k), &mut rng)?
             }
-            (Start::Inherit, None) => unreachable!("checked above: the coarsest level does not inherit"),
+            (Start::Inherit | Start::Jittered { .. }, None) => {
+                unreachable!("checked above: the coarsest level does not inherit")
+            }
         };
         let mut stats = PassStats::default();
         let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
@@ -205,7 +215,7 @@ pub fn synthesize(
             stats = run_pass(p, &level, &mut current, params, &schedule, &mut rng)?;
             progress.advance(1);
         }
-        let passes = recipe.passes.len() + usize::from(recipe.start == Start::Inherit);
+        let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
         reports.push(report(l, target, passes, started.elapsed(), stats));
         state = Some(current);
         drop(iso);

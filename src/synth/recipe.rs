@@ -30,6 +30,30 @@ pub enum Start {
     /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
     /// only below the coarsest level.
     Inherit,
+    /// [`Start::Inherit`], then each vertex's coordinate moved by a seeded random offset
+    /// (Lefebvre and Hoppe 2005 §3.2, jittered upsampling): per axis `floor(texels · u +
+    /// ½)`, u uniform in [−1, 1), so `texels` of ½ or less moves nothing and 1 moves a vertex
+    /// by at most one texel. The offsets are a function of the seed, level and vertex, so
+    /// they do not depend on the thread count. Inherited copies continue exactly; jitter
+    /// breaks them into pieces that the level's passes then join up again differently,
+    /// which varies what a coarse copy becomes at the finer levels. Only below the
+    /// coarsest level.
+    Jittered {
+        /// Jitter amplitude in texels of the level's sample (0 to [`MAX_JITTER`]).
+        texels: f32,
+    },
+}
+
+/// The largest [`Start::Jittered`] amplitude: beyond a few texels a vertex lands in an
+/// unrelated part of the sample and the inherited structure is gone.
+pub const MAX_JITTER: f32 = 4.0;
+
+impl Start {
+    /// Whether the level starts from the coarser level's map ([`Start::Inherit`] or
+    /// [`Start::Jittered`]).
+    pub fn inherits(self) -> bool {
+        matches!(self, Start::Inherit | Start::Jittered { .. })
+    }
 }
 
 /// Order in which a pass visits the vertices.
@@ -247,7 +271,7 @@ pub struct Preset {
     pub name: String,
     /// The paper the preset follows, for listing the presets.
     pub paper: String,
-    /// The coarsest level (its start may not be [`Start::Inherit`]).
+    /// The coarsest level (its start may not inherit, [`Start::inherits`]).
     pub coarsest: LevelRecipe,
     /// Every finer level.
     pub finer: LevelRecipe,
@@ -528,7 +552,7 @@ impl Preset {
     /// has been validated already.)
     pub fn validate(&self) -> Result<()> {
         let refuse = |what: String| Err(Error::recipe(&self.name, what));
-        if self.coarsest.start == Start::Inherit {
+        if self.coarsest.start.inherits() {
             return refuse("the coarsest level cannot inherit (it has no coarser level)".into());
         }
         for (level, recipe) in [("coarsest", &self.coarsest), ("finer", &self.finer)] {
@@ -539,6 +563,13 @@ impl Preset {
                 if !(radius.is_finite() && radius > 0.0) {
                     return refuse(format!(
                         "the {level} level's patch radius must be positive, not {radius}"
+                    ));
+                }
+            }
+            if let Start::Jittered { texels } = recipe.start {
+                if !(0.0..=MAX_JITTER).contains(&texels) {
+                    return refuse(format!(
+                        "the {level} level's jitter must be 0 to {MAX_JITTER} texels, not {texels}"
                     ));
                 }
             }
@@ -866,6 +897,8 @@ mod tests {
             assert!(e.contains(needle), "{e}");
         };
         refused(&|p| p.coarsest.start = Start::Inherit, "coarsest level cannot inherit");
+        refused(&|p| p.coarsest.start = Start::Jittered { texels: 1.0 }, "coarsest level cannot inherit");
+        refused(&|p| p.finer.start = Start::Jittered { texels: MAX_JITTER + 1.0 }, "jitter");
         refused(&|p| p.finer.passes.clear(), "finer level has no passes");
         refused(&|p| p.coarsest.passes.clear(), "coarsest level has no passes");
         let appearance = Preset::appearance();
@@ -890,6 +923,9 @@ mod tests {
         let mut built = Preset::appearance();
         built.finer.passes[1].coherence_bias = f32::NAN;
         assert!(built.validate().unwrap_err().to_string().contains("coherence_bias"));
+        let mut built = Preset::appearance();
+        built.finer.start = Start::Jittered { texels: f32::NAN };
+        assert!(built.validate().unwrap_err().to_string().contains("jitter"));
     }
 
     /// Bad JSON is refused with serde's message, which names the field.

@@ -194,6 +194,23 @@ pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel, radius
     with_labels(uv, sample)
 }
 
+/// `state` with every coordinate moved by its jitter (Lefebvre and Hoppe 2005 §3.2; see
+/// [`super::recipe::Start::Jittered`]): per axis `floor(texels · u + ½)`, u uniform in
+/// [−1, 1) from a hash of `seed`, the vertex and the axis, folded back into the sample's
+/// candidate texels. Labels are read again at the new coordinates.
+pub fn jitter(state: State, sample: &SampleLevel, radius: usize, texels: f32, seed: u64) -> State {
+    let offset = |v: usize, axis: i64| {
+        let u = 2.0 * crate::seeded::unit(seed, v as i64, axis, 0) - 1.0;
+        (texels * u + 0.5).floor() as i64
+    };
+    let uv = (state.uv.iter().enumerate())
+        .map(|(v, &[x, y])| {
+            sample.fold_into_candidates(x as i64 + offset(v, 0), y as i64 + offset(v, 1), radius)
+        })
+        .collect();
+    with_labels(uv, sample)
+}
+
 fn with_labels(uv: Vec<[i32; 2]>, sample: &SampleLevel) -> State {
     let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
     State { labels, uv }
@@ -333,6 +350,26 @@ mod tests {
     use crate::synth::engine::tests::periodic_sample;
     use crate::synth::target::grid_levels;
     use rand::SeedableRng;
+
+    /// Jitter moves each axis by at most round(texels), moves nothing below half a texel,
+    /// moves most vertices at one texel, and is a function of the seed alone.
+    #[test]
+    fn jitter_moves_within_its_amplitude_and_follows_the_seed() {
+        let sample = periodic_sample(4);
+        let uv: Vec<[i32; 2]> = (0..200).map(|v| [(v % 16) as i32, (v / 16 % 16) as i32]).collect();
+        let state = with_labels(uv.clone(), &sample);
+        let moved = |texels: f32, seed: u64| jitter(state.clone(), &sample, 2, texels, seed);
+        assert_eq!(moved(0.45, 1).uv, uv);
+        let one = moved(1.0, 1);
+        assert_eq!(one.uv, moved(1.0, 1).uv);
+        assert_ne!(one.uv, moved(1.0, 2).uv);
+        // A tileable sample wraps, so a step of one texel may read as a step across it.
+        let step = |a: i32, b: i32| (a - b).rem_euclid(16).min((b - a).rem_euclid(16));
+        assert!(one.uv.iter().zip(&uv).all(|(a, b)| step(a[0], b[0]) <= 1 && step(a[1], b[1]) <= 1));
+        let changed = one.uv.iter().zip(&uv).filter(|(a, b)| a != b).count();
+        assert!(changed > 100, "{changed} of 200 moved");
+        assert!(one.uv.iter().zip(&one.labels).all(|(&[x, y], &l)| l == sample.label_at(x as i64, y as i64)));
+    }
 
     #[test]
     fn patches_copy_whole_pieces_with_their_offsets() {
