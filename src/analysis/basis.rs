@@ -118,21 +118,32 @@ pub trait RowSource: Sync {
     fn block(&self, start: usize, len: usize) -> Array2<f32>;
 }
 
-/// Rows per block of [`principal_images_streamed`]: a multiple of the GEMM's depth block
-/// (matrixmultiply's 256 for f32), so that products summed over the rows add the same
-/// partial sums in the same order as one product over all rows.
-const STREAM_ROWS: usize = 8 * 256;
+/// Rows per block of [`principal_images_streamed`] for rows of `cols` values: about 16 MB
+/// of values, and a multiple of the GEMM's depth block (matrixmultiply's 256 for f32), so
+/// that products summed over the rows add the same partial sums in the same order as one
+/// product over all rows.
+fn stream_rows(cols: usize) -> usize {
+    ((1 << 22) / cols.max(1) / 256).max(1) * 256
+}
 
 /// [`principal_images`] of the rows of `source`, the same to the bit, without holding them:
 /// each pass over the stack (mean, energy and sketch, power iteration, projection) makes
 /// the rows again a block at a time. At most `options.exact_limit` rows are made at once
 /// and handed to [`principal_images`].
 pub fn principal_images_streamed(source: &dyn RowSource, options: &BasisOptions) -> Result<PrincipalImages> {
+    streamed_in_blocks(source, options, stream_rows(source.cols()))
+}
+
+fn streamed_in_blocks(
+    source: &dyn RowSource,
+    options: &BasisOptions,
+    block: usize,
+) -> Result<PrincipalImages> {
     let (n, p) = (source.rows(), source.cols());
     if n <= options.exact_limit || p == 0 {
         return principal_images(source.block(0, n).view(), options);
     }
-    let blocks = || (0..n).step_by(STREAM_ROWS).map(move |start| (start, STREAM_ROWS.min(n - start)));
+    let blocks = || (0..n).step_by(block).map(move |start| (start, block.min(n - start)));
     // As `mean_axis` sums a row-major stack: row after row, in order.
     let mut sum = Array1::<f32>::zeros(p);
     for (start, len) in blocks() {
@@ -652,18 +663,20 @@ mod tests {
 
     #[test]
     fn streamed_principal_images_equal_those_of_the_whole_stack_to_the_bit() {
-        // 5,000 rows: past the exact limit, in blocks of 2,048, the last one partial.
-        let rows = low_rank_stack(5000, 70, 6) + Array2::from_shape_fn((5000, 70), |(i, j)| {
-            1e-3 * normal(3, i as i64, j as i64)
-        });
-        for max_rank in [4, 20] {
+        // 5,000 rows: past the exact limit, in blocks of 512 (the last one partial) or one.
+        let rows = low_rank_stack(5000, 70, 6)
+            + Array2::from_shape_fn((5000, 70), |(i, j)| 1e-3 * normal(3, i as i64, j as i64));
+        for (max_rank, block) in [(4, 512), (20, 512), (20, stream_rows(70))] {
             let options = BasisOptions { max_rank, seed: 7, ..Default::default() };
-            let (whole, streamed) =
-                (principal_images(rows.view(), &options).unwrap(), principal_images_streamed(&rows, &options).unwrap());
+            let whole = principal_images(rows.view(), &options).unwrap();
+            let streamed = streamed_in_blocks(&rows, &options, block).unwrap();
             let bits = |a: &Array2<f32>| a.mapv(f32::to_bits);
             assert!(bits(&whole.components) == bits(&streamed.components), "rank {max_rank}: components");
             assert!(bits(&whole.coords) == bits(&streamed.coords), "rank {max_rank}: coordinates");
-            assert!(whole.mean.mapv(f32::to_bits) == streamed.mean.mapv(f32::to_bits), "rank {max_rank}: mean");
+            assert!(
+                whole.mean.mapv(f32::to_bits) == streamed.mean.mapv(f32::to_bits),
+                "rank {max_rank}: mean"
+            );
             assert_eq!(whole.sigma, streamed.sigma);
             assert_eq!(whole.energy.to_bits(), streamed.energy.to_bits());
         }
