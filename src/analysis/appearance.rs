@@ -12,9 +12,10 @@
 //! nothing and the result stutters (measured on 128² photographs → 512²: nearest-patch
 //! energy 0.0056 with filter responses, 0.0032 with these, same engine otherwise).
 
-use super::basis::{principal_images, BasisOptions, PrincipalImages};
+use super::basis::{principal_images, principal_images_streamed, BasisOptions, PrincipalImages, RowSource};
 use crate::Result;
 use ndarray::{Array2, ArrayView2};
+use rayon::prelude::*;
 
 /// Dimensions kept by default: 16 keep nearly all the variance of a photograph's 5×5×3
 /// neighbourhoods (8 measurably lose detail: nearest-patch energy +15%).
@@ -35,8 +36,11 @@ pub fn appearance_vectors(
     // A BTF pixel's colour over every image has (rank + 1)·3 values; reduce it first so the
     // neighbourhoods stay small.
     let colours = project(pixel_colours(basis).view(), dims, seed)?;
-    let neighbourhoods = neighbourhoods(colours.view(), (width, height), NEIGHBOURHOOD, wraps);
-    project(neighbourhoods.view(), dims, seed)
+    // Every pixel's neighbourhood is 25 × dims values (a 512² photo's: 420 MB); they are
+    // made a block at a time, for each pass of the projection, instead of held.
+    let rows = Neighbourhoods { vectors: colours.view(), size: (width, height), side: NEIGHBOURHOOD, wraps };
+    let options = BasisOptions { energy: 1.0, max_rank: dims, seed, ..BasisOptions::default() };
+    Ok(leading_columns(&principal_images_streamed(&rows, &options)?, rows.rows(), dims))
 }
 
 /// Each pixel's colour in every image, as the basis represents it (dot products equal those
@@ -53,19 +57,53 @@ fn pixel_colours(basis: &PrincipalImages) -> Array2<f32> {
 /// fewer; the missing columns are 0).
 fn project(rows: ArrayView2<f32>, dims: usize, seed: u64) -> Result<Array2<f32>> {
     let options = BasisOptions { energy: 1.0, max_rank: dims, seed, ..BasisOptions::default() };
-    let pca = principal_images(rows, &options)?;
-    let mut out = Array2::zeros((rows.nrows(), dims));
+    Ok(leading_columns(&principal_images(rows, &options)?, rows.nrows(), dims))
+}
+
+/// The first `dims` columns of the coordinates of `n` rows, zeros past those there are.
+fn leading_columns(pca: &PrincipalImages, n: usize, dims: usize) -> Array2<f32> {
+    let mut out = Array2::zeros((n, dims));
     let kept = pca.coords.ncols().min(dims);
     out.slice_mut(ndarray::s![.., ..kept]).assign(&pca.coords.slice(ndarray::s![.., ..kept]));
-    Ok(out)
+    out
+}
+
+/// Every pixel's `side × side` neighbourhood of `vectors`, concatenated row by row (see
+/// [`neighbourhood_rows`]), as a stack of rows made on demand.
+struct Neighbourhoods<'a> {
+    vectors: ArrayView2<'a, f32>,
+    size: (usize, usize),
+    side: usize,
+    wraps: bool,
+}
+
+impl RowSource for Neighbourhoods<'_> {
+    fn rows(&self) -> usize {
+        self.size.0 * self.size.1
+    }
+
+    fn cols(&self) -> usize {
+        self.side * self.side * self.vectors.ncols()
+    }
+
+    fn block(&self, start: usize, len: usize) -> Array2<f32> {
+        neighbourhood_rows(self.vectors, self.size, self.side, self.wraps, start..start + len)
+    }
 }
 
 /// Every pixel's `side × side` neighbourhood of `vectors`, concatenated row by row.
-fn neighbourhoods(
+#[cfg(test)]
+fn neighbourhoods(vectors: ArrayView2<f32>, size: (usize, usize), side: usize, wraps: bool) -> Array2<f32> {
+    neighbourhood_rows(vectors, size, side, wraps, 0..size.0 * size.1)
+}
+
+/// The neighbourhoods of the pixels `pixels` (row-major indices), one per row.
+fn neighbourhood_rows(
     vectors: ArrayView2<f32>,
     (width, height): (usize, usize),
     side: usize,
     wraps: bool,
+    pixels: std::ops::Range<usize>,
 ) -> Array2<f32> {
     let d = vectors.ncols();
     let r = (side / 2) as i64;
@@ -81,15 +119,16 @@ fn neighbourhoods(
             (if m < n { m } else { period - m }) as usize
         }
     };
-    let mut out = Array2::zeros((width * height, side * side * d));
-    for (p, mut row) in out.rows_mut().into_iter().enumerate() {
+    let (rows, cols) = (pixels.len(), side * side * d);
+    let mut out = vec![0f32; rows * cols];
+    out.par_chunks_mut(cols.max(1)).zip(pixels.into_par_iter()).for_each(|(row, p)| {
         let (x, y) = ((p % width) as i64, (p / width) as i64);
         for (k, (dy, dx)) in (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| (dy, dx))).enumerate() {
             let q = fold(y + dy, height) * width + fold(x + dx, width);
-            row.slice_mut(ndarray::s![k * d..(k + 1) * d]).assign(&vectors.row(q));
+            row[k * d..(k + 1) * d].iter_mut().zip(vectors.row(q)).for_each(|(o, &v)| *o = v);
         }
-    }
-    out
+    });
+    Array2::from_shape_vec((rows, cols), out).expect("the buffer holds rows × cols values")
 }
 
 #[cfg(test)]
@@ -120,6 +159,20 @@ mod tests {
         assert_eq!(mirrored.row(0).to_vec(), [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0]);
         let wrapped = neighbourhoods(v.view(), (3, 1), 3, true);
         assert_eq!(wrapped.row(0).to_vec(), [2.0, 0.0, 1.0, 2.0, 0.0, 1.0, 2.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn streamed_vectors_equal_those_of_the_neighbourhoods_held_whole() {
+        // 70 × 60 pixels: more rows than the exact limit, in three streamed blocks.
+        let images = Array2::from_shape_fn((3, 70 * 60 * 3), |(a, i)| normal(5, a as i64, i as i64));
+        let basis = principal_images(images.view(), &BasisOptions::default()).unwrap();
+        for wraps in [false, true] {
+            let streamed = appearance_vectors(&basis, (70, 60), 8, wraps, 4).unwrap();
+            let colours = project(pixel_colours(&basis).view(), 8, 4).unwrap();
+            let whole = project(neighbourhoods(colours.view(), (70, 60), NEIGHBOURHOOD, wraps).view(), 8, 4);
+            let (a, b) = (streamed.mapv(f32::to_bits), whole.unwrap().mapv(f32::to_bits));
+            assert!(a == b, "wraps {wraps}: the streamed vectors differ");
+        }
     }
 
     #[test]

@@ -80,6 +80,18 @@ pub fn principal_images(images: ArrayView2<f32>, options: &BasisOptions) -> Resu
         let b = q.t().dot(&centred);
         (Some(q), b)
     };
+    from_range(mean, total, range, rows, options)
+}
+
+/// The principal images once the centred rows are known through `rows`: the centred stack
+/// itself (`range` none), or its projection on the orthonormal columns `range`.
+fn from_range(
+    mean: Array1<f32>,
+    total: f64,
+    range: Option<Array2<f32>>,
+    rows: Array2<f32>,
+    options: &BasisOptions,
+) -> Result<PrincipalImages> {
     let (u, lambda) = leading_eigenvectors(&rows.dot(&rows.t()))?;
     let rank = kept_rank(&lambda, total, options);
     let sigma: Vec<f32> = lambda[..rank].iter().map(|l| l.sqrt() as f32).collect();
@@ -93,6 +105,90 @@ pub fn principal_images(images: ArrayView2<f32>, options: &BasisOptions) -> Resu
     };
     let energy = lambda[..rank].iter().sum::<f64>() / total;
     Ok(PrincipalImages { mean, components, sigma, coords, energy: energy.min(1.0) })
+}
+
+/// A stack of rows made a block at a time (e.g. every pixel's neighbourhood), too large to
+/// hold whole.
+pub trait RowSource: Sync {
+    /// Number of rows.
+    fn rows(&self) -> usize;
+    /// Values per row.
+    fn cols(&self) -> usize;
+    /// Rows `start..start + len`, one per row of a row-major array.
+    fn block(&self, start: usize, len: usize) -> Array2<f32>;
+}
+
+/// Rows per block of [`principal_images_streamed`] for rows of `cols` values: about 16 MB
+/// of values, and a multiple of the GEMM's depth block (matrixmultiply's 256 for f32), so
+/// that products summed over the rows add the same partial sums in the same order as one
+/// product over all rows.
+fn stream_rows(cols: usize) -> usize {
+    ((1 << 22) / cols.max(1) / 256).max(1) * 256
+}
+
+/// [`principal_images`] of the rows of `source`, the same to the bit, without holding them:
+/// each pass over the stack (mean, energy and sketch, power iteration, projection) makes
+/// the rows again a block at a time. At most `options.exact_limit` rows are made at once
+/// and handed to [`principal_images`].
+pub fn principal_images_streamed(source: &dyn RowSource, options: &BasisOptions) -> Result<PrincipalImages> {
+    streamed_in_blocks(source, options, stream_rows(source.cols()))
+}
+
+fn streamed_in_blocks(
+    source: &dyn RowSource,
+    options: &BasisOptions,
+    block: usize,
+) -> Result<PrincipalImages> {
+    let (n, p) = (source.rows(), source.cols());
+    if n <= options.exact_limit || p == 0 {
+        return principal_images(source.block(0, n).view(), options);
+    }
+    let blocks = || (0..n).step_by(block).map(move |start| (start, block.min(n - start)));
+    // As `mean_axis` sums a row-major stack: row after row, in order.
+    let mut sum = Array1::<f32>::zeros(p);
+    for (start, len) in blocks() {
+        source.block(start, len).rows().into_iter().for_each(|row| sum += &row);
+    }
+    let mean = sum / n as f32;
+    let centred = |start: usize, len: usize| source.block(start, len) - &mean;
+    let q = (options.max_rank + 10).min(n).min(p);
+    let omega = Array2::from_shape_fn((p, q), |(i, j)| normal(options.seed, i as i64, j as i64));
+    let (mut total, mut y) = (0f64, Array2::<f32>::zeros((n, q)));
+    for (start, len) in blocks() {
+        let c = centred(start, len);
+        total = c.iter().fold(total, |t, &v| t + (v as f64) * (v as f64));
+        y.slice_mut(s![start..start + len, ..]).assign(&c.dot(&omega));
+    }
+    if total <= 0.0 {
+        return Ok(PrincipalImages {
+            mean,
+            components: Array2::zeros((0, p)),
+            sigma: vec![],
+            coords: Array2::zeros((n, 0)),
+            energy: 1.0,
+        });
+    }
+    // The power iteration of `randomized_range`: Y = C (Cᵀ orth(C Ω)).
+    let first = orthonormal_columns(y);
+    let mut z = Array2::<f32>::zeros((p, q));
+    for (start, len) in blocks() {
+        let beta = if start == 0 { 0.0 } else { 1.0 };
+        let part = first.slice(s![start..start + len, ..]);
+        ndarray::linalg::general_mat_mul(1.0, &centred(start, len).t(), &part, beta, &mut z);
+    }
+    drop(first);
+    let mut y = Array2::<f32>::zeros((n, q));
+    for (start, len) in blocks() {
+        y.slice_mut(s![start..start + len, ..]).assign(&centred(start, len).dot(&z));
+    }
+    let range = orthonormal_columns(y);
+    let mut b = Array2::<f32>::zeros((q, p));
+    for (start, len) in blocks() {
+        let beta = if start == 0 { 0.0 } else { 1.0 };
+        let part = range.slice(s![start..start + len, ..]);
+        ndarray::linalg::general_mat_mul(1.0, &part.t(), &centred(start, len), beta, &mut b);
+    }
+    from_range(mean, total, Some(range), b, options)
 }
 
 /// A stack known as a product of low rank: image `a` is `offset + coords[a] · rows`, exactly
@@ -551,6 +647,39 @@ mod tests {
         assert!(stack.outside < 1e-5 * total, "outside {} of {total}", stack.outside);
         let basis = principal_images_low_rank(&stack, &BasisOptions::default()).unwrap();
         assert_eq!(basis.sigma.len(), 4);
+    }
+
+    impl RowSource for Array2<f32> {
+        fn rows(&self) -> usize {
+            self.nrows()
+        }
+        fn cols(&self) -> usize {
+            self.ncols()
+        }
+        fn block(&self, start: usize, len: usize) -> Array2<f32> {
+            self.slice(s![start..start + len, ..]).to_owned()
+        }
+    }
+
+    #[test]
+    fn streamed_principal_images_equal_those_of_the_whole_stack_to_the_bit() {
+        // 5,000 rows: past the exact limit, in blocks of 512 (the last one partial) or one.
+        let rows = low_rank_stack(5000, 70, 6)
+            + Array2::from_shape_fn((5000, 70), |(i, j)| 1e-3 * normal(3, i as i64, j as i64));
+        for (max_rank, block) in [(4, 512), (20, 512), (20, stream_rows(70))] {
+            let options = BasisOptions { max_rank, seed: 7, ..Default::default() };
+            let whole = principal_images(rows.view(), &options).unwrap();
+            let streamed = streamed_in_blocks(&rows, &options, block).unwrap();
+            let bits = |a: &Array2<f32>| a.mapv(f32::to_bits);
+            assert!(bits(&whole.components) == bits(&streamed.components), "rank {max_rank}: components");
+            assert!(bits(&whole.coords) == bits(&streamed.coords), "rank {max_rank}: coordinates");
+            assert!(
+                whole.mean.mapv(f32::to_bits) == streamed.mean.mapv(f32::to_bits),
+                "rank {max_rank}: mean"
+            );
+            assert_eq!(whole.sigma, streamed.sigma);
+            assert_eq!(whole.energy.to_bits(), streamed.energy.to_bits());
+        }
     }
 
     #[test]

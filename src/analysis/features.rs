@@ -3,7 +3,7 @@
 use super::basis::PrincipalImages;
 use super::convolve::{BankConvolver, Padding};
 use crate::Result;
-use ndarray::{Array1, Array2, ArrayView1};
+use ndarray::{Array1, Array2, Array3, ArrayView1};
 use rayon::prelude::*;
 
 /// The responses of one interleaved RGB image to every filter, per colour channel:
@@ -41,21 +41,27 @@ pub fn texton_features(
     let weights = basis.block_weights();
     let blocks: Vec<ArrayView1<f32>> =
         std::iter::once(basis.mean.view()).chain(basis.components.rows()).collect();
-    let per_block = 3 * convolver.bank().len();
-    let mut features = Array2::zeros((width * height, blocks.len() * per_block));
-    // A few blocks at a time (as many as threads), so that the responses waiting to be
-    // copied stay a few blocks' worth rather than a second copy of the features.
-    let group = rayon::current_num_threads().max(1);
-    for first in (0..blocks.len()).step_by(group) {
-        let last = (first + group).min(blocks.len());
-        let responses: Vec<Array2<f32>> = blocks[first..last]
+    let (filters, pixels) = (convolver.bank().len(), width * height);
+    let mut features = Array2::zeros((pixels, blocks.len() * 3 * filters));
+    // One colour channel of one block per task, a few tasks at a time (as many as threads),
+    // each task's responses copied into its columns as soon as the group is done: what waits
+    // is a few planes' responses (at 512², 50 MB each), never a second copy of the features.
+    let tasks: Vec<(usize, usize)> = (0..blocks.len()).flat_map(|b| (0..3).map(move |c| (b, c))).collect();
+    for group in tasks.chunks(rayon::current_num_threads().max(1)) {
+        let responses: Vec<Array3<f32>> = group
             .par_iter()
-            .map(|image| rgb_responses(*image, width, height, convolver, padding))
+            .map(|&(b, c)| {
+                let plane: Vec<f32> = blocks[b].iter().skip(c).step_by(3).copied().collect();
+                convolver.filter(&plane, width, height, padding)
+            })
             .collect::<Result<_>>()?;
-        for (b, r) in (first..last).zip(&responses) {
-            let w = weights[b];
+        for (&(b, c), r) in group.iter().zip(responses) {
+            let (w, first) = (weights[b], (3 * b + c) * filters);
+            let r = r
+                .into_shape_with_order((filters, pixels))
+                .map_err(|e| crate::Error::internal(format!("shaping filter responses: {e}")))?;
             features
-                .slice_mut(ndarray::s![.., b * per_block..(b + 1) * per_block])
+                .slice_mut(ndarray::s![.., first..first + filters])
                 .zip_mut_with(&r.t(), |dst, &src| *dst = src * w);
         }
     }

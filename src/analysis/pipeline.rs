@@ -1,6 +1,6 @@
 //! `analyze`: a BTF stack in, the texton pyramid with its kNN lists out.
 
-use super::basis::{principal_images_low_rank, LowRankStack};
+use super::basis::{principal_images_low_rank, LowRankStack, RowSource};
 use super::convolve::{BankConvolver, Padding};
 use super::filters::FilterBank;
 use super::gamma::distance_table;
@@ -160,9 +160,8 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
     let convolver = BankConvolver::new(params.filters.clone());
     let padding = Padding::from_tileable(params.tileable);
 
-    let all = stack_rows(btf, &(0..btf.len()).collect::<Vec<_>>());
     let selected = representatives(
-        all.view(),
+        &BtfRows(btf),
         (width, height),
         params.selected,
         &convolver,
@@ -170,7 +169,6 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
         params.seed,
         progress,
     )?;
-    drop(all);
     timings.selection = started.elapsed();
 
     let mut images = stack_rows(btf, &selected);
@@ -278,14 +276,30 @@ pub fn analyze_low_rank(
 
 /// The chosen images as rows of interleaved linear RGB.
 fn stack_rows(btf: &Btf, indices: &[usize]) -> Array2<f32> {
+    use rayon::prelude::*;
     let per_image = btf.width() * btf.height() * 3;
-    let mut rows = Array2::zeros((indices.len(), per_image));
-    for (row, &i) in indices.iter().enumerate() {
-        for (dst, src) in rows.row_mut(row).iter_mut().zip(btf.image(i)) {
-            *dst = src.to_f32();
-        }
+    let mut rows = vec![0f32; indices.len() * per_image];
+    rows.par_chunks_mut(per_image.max(1)).zip(indices).for_each(|(row, &i)| {
+        row.iter_mut().zip(btf.image(i)).for_each(|(dst, src)| *dst = src.to_f32());
+    });
+    Array2::from_shape_vec((indices.len(), per_image), rows).expect("the buffer holds images × values")
+}
+
+/// A stack's images as f32 rows, converted a block at a time.
+struct BtfRows<'a>(&'a Btf);
+
+impl RowSource for BtfRows<'_> {
+    fn rows(&self) -> usize {
+        self.0.len()
     }
-    rows
+
+    fn cols(&self) -> usize {
+        self.0.width() * self.0.height() * 3
+    }
+
+    fn block(&self, start: usize, len: usize) -> Array2<f32> {
+        stack_rows(self.0, &(start..start + len).collect::<Vec<_>>())
+    }
 }
 
 fn downsample_rows(images: &Array2<f32>, (width, height): (usize, usize), tileable: bool) -> Array2<f32> {

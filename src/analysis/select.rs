@@ -6,21 +6,23 @@
 //! images becomes a quadratic form in their basis coordinates (exact up to the basis' 99.9%
 //! energy cut).
 
-use super::basis::{principal_images, BasisOptions, PrincipalImages};
+use super::basis::{principal_images_streamed, BasisOptions, PrincipalImages, RowSource};
 use super::convolve::{BankConvolver, Padding};
 use super::features::rgb_responses;
 use super::kmeans::{kmeans, KMeansOptions};
 use crate::progress::Progress;
 use crate::Result;
-use ndarray::{Array2, ArrayView2};
+use ndarray::Array2;
 
 /// Grid points per side of the subsampling grid (about).
 const GRID_POINTS: usize = 16;
 
 /// Indices of `count` representative images of `images` (one image per row, interleaved
-/// RGB, `width × height`), in increasing order; all images if there are no more than `count`.
+/// RGB, `width × height`, made a block at a time: the whole stack as f32 rows, with its
+/// centred copy, would be four times its f16 size), in increasing order; all images if
+/// there are no more than `count`.
 pub fn representatives(
-    images: ArrayView2<f32>,
+    images: &dyn RowSource,
     (width, height): (usize, usize),
     count: usize,
     convolver: &BankConvolver,
@@ -28,11 +30,11 @@ pub fn representatives(
     seed: u64,
     progress: &dyn Progress,
 ) -> Result<Vec<usize>> {
-    let n = images.nrows();
+    let n = images.rows();
     if n <= count {
         return Ok((0..n).collect());
     }
-    let basis = principal_images(images, &selection_basis_options(seed))?;
+    let basis = principal_images_streamed(images, &selection_basis_options(seed))?;
     representatives_from_basis(&basis, (width, height), count, convolver, padding, seed, progress)
 }
 

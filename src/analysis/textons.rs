@@ -100,9 +100,6 @@ pub fn level_textons_from_basis(
     let mut timings = StageTimes::default();
     let started = Instant::now();
     let features = texton_features(basis, width, height, convolver, options.padding)?;
-    let wraps = matches!(options.padding, Padding::Wrap);
-    let appearance =
-        appearance_vectors(basis, (width, height), options.appearance_dims, wraps, options.seed)?;
     timings.filtering = started.elapsed();
 
     let started = Instant::now();
@@ -119,6 +116,12 @@ pub fn level_textons_from_basis(
     };
     drop(features);
     timings.kmeans = started.elapsed();
+    // Made once the features are gone, so the two never take memory at the same time.
+    let started = Instant::now();
+    let wraps = matches!(options.padding, Padding::Wrap);
+    let appearance =
+        appearance_vectors(basis, (width, height), options.appearance_dims, wraps, options.seed)?;
+    timings.filtering += started.elapsed();
     let textons = clustering.centres.nrows();
     if textons >= u16::MAX as usize {
         return Err(Error::invalid(format!("{textons} textons do not fit the u16 texton map")));
