@@ -22,7 +22,7 @@
 
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
-use super::kdtrees::{Eigen, Flow, UseTrees};
+use super::kdtrees::{Eigen, Flow, UseTrees, APPROXIMATION};
 use super::metric::known_parts;
 use super::neighbourhood::Compared;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
@@ -285,11 +285,13 @@ impl<'a> IsoMatch<'a> {
         best
     }
 
-    /// The best of every candidate texel, through the kd-trees (exact: [`super::kdtrees`]):
-    /// first `seeds`, which hold every candidate continuing a neighbour's copy (the one
-    /// cheaper factor), then each tree nearest first until its lower bound times its
-    /// penalty cannot win. A vertex with unknown points (past an edge) scans every
-    /// candidate: the transform needs all of them.
+    /// The best of every candidate texel, through the kd-trees (ε-approximate:
+    /// [`super::kdtrees`]): first `seeds`, which hold every candidate continuing a
+    /// neighbour's copy (the one cheaper factor), then each tree nearest first until its
+    /// lower bound times its penalty cannot win by more than 1 + ε. A vertex with unknown
+    /// points (past an edge) searches the same way from its known points' fit, its
+    /// estimates scaled by their share of the weight (what its distances compare); scanning
+    /// every candidate for them took a quarter of a 128² level's search.
     fn search_trees(
         &mut self,
         trees: &UseTrees,
@@ -297,19 +299,21 @@ impl<'a> IsoMatch<'a> {
         factor: &impl Fn(u32) -> f32,
     ) -> (Best, usize) {
         let eigen = trees.eigen();
-        if self.known.contains(&false) {
-            return (self.scan(eigen.texels(), factor, true, (f32::INFINITY, 0, 0)), eigen.texels().len());
-        }
-        let query = eigen.query(&self.own);
+        let (query, share) = if self.known.contains(&false) {
+            eigen.partial_query(&self.own, &self.known)
+        } else {
+            (eigen.query(&self.own), 1.0)
+        };
+        let slack = 1.0 + APPROXIMATION;
         let mut seeds: Vec<(f32, u32)> = seeds
             .iter()
             .filter(|q| !self.adjacent.contains(q))
-            .map(|&q| (eigen.bound(&query, q) * factor(q), q))
+            .map(|&q| (eigen.bound(&query, q) * share * factor(q), q))
             .collect();
         seeds.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let (mut best, mut compared) = ((f32::INFINITY, 0, 0), 0);
         for &(low, q) in &seeds {
-            if low > best.0 {
+            if low * slack > best.0 {
                 break;
             }
             best = self.consider(q, factor(q), best);
@@ -321,14 +325,15 @@ impl<'a> IsoMatch<'a> {
         let mut seen = std::mem::take(&mut self.seen);
         seeds.iter().map(|s| &s.1).chain(&self.adjacent).for_each(|&q| seen[q as usize] = visit);
         let (base, bias) = self.fresh;
-        let radius = |excess: u32| best.get().0 / (base.powi(excess.min(60) as i32) * (1.0 + bias));
+        let radius =
+            |excess: u32| best.get().0 / (base.powi(excess.min(60) as i32) * (1.0 + bias) * slack * share);
         trees.search(&query, radius, |q, bound| {
             if seen[q as usize] == visit {
                 return Flow::Next;
             }
             // Every texel left in this tree starts a new copy: the same factor for all.
             let f = factor(q);
-            if bound * f > best.get().0 {
+            if bound * share * f * slack > best.get().0 {
                 return Flow::Leave;
             }
             seen[q as usize] = visit;
