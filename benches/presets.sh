@@ -9,17 +9,21 @@
 #                    colour χ² and seam figure (border windows' energy over the interior's)
 #   contact.png      rows: the sample (head-on, light at 45°, `btfsynth relight`), then the
 #                    presets and soler2002; columns: materials (rendered with `btfsynth render`)
+# --only PRESET (repeatable) runs those presets alone, without soler2002: their rows and
+# sheet, for rerunning one preset without the others' hour of CPU.
 # Needs jq and python3 with Pillow (for the contact sheet).
-#   benches/presets.sh [--out DIR] [--vertices N]
+#   benches/presets.sh [--out DIR] [--vertices N] [--only PRESET]...
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=bench-out/presets
 vertices=40000
+only=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --out) out=$2; shift 2 ;;
     --vertices) vertices=$2; shift 2 ;;
-    *) echo "usage: benches/presets.sh [--out DIR] [--vertices N]" >&2; exit 2 ;;
+    --only) only+=("$2"); shift 2 ;;
+    *) echo "usage: benches/presets.sh [--out DIR] [--vertices N] [--only PRESET]..." >&2; exit 2 ;;
   esac
 done
 cargo build --release
@@ -49,6 +53,12 @@ for m in "${materials[@]}"; do
 done
 
 presets=$($bin synth --list-presets | awk '{print $1}')
+if [ ${#only[@]} -gt 0 ]; then
+  for p in "${only[@]}"; do
+    echo "$presets" | grep -qx "$p" || { echo "no preset named $p" >&2; exit 2; }
+  done
+  presets=$(printf '%s\n' "${only[@]}")
+fi
 table="$out/presets.md"
 {
   echo "| preset | material | vertices | remesh s | frames s | templates s | synthesis s (coarsest → finest) | collapse | smear | copy | coherence | texton χ² | patch energy |"
@@ -79,12 +89,15 @@ cat "$table"
 # original mesh by texture coordinates, rendered and scored like the presets' results, at
 # the presets' scale (one texel per finest vertex spacing of the first preset's run).
 first=$(echo "$presets" | head -1)
+methods=soler2002
+[ ${#only[@]} -gt 0 ] && methods=
 soler_table="$out/soler2002.md"
 {
   echo "| method | material | faces | seconds | patch energy | colour χ² | seam ratio (border / interior windows) |"
   echo "|---|---|---|---|---|---|---|"
 } >"$soler_table"
 for m in "${materials[@]}"; do
+  [ -n "$methods" ] || break
   ply="$out/soler2002-$m.ply"
   scale=$(jq '1 / .params.mesh_levels[0].texel' "$out/$first-$m.report.json")
   $bin -q synth "$out/$m.analysis" data/bunny-1k8.obj --method soler2002 --scale "$scale" \
@@ -100,7 +113,7 @@ for m in "${materials[@]}"; do
 done
 cat "$soler_table"
 
-python3 - "$out" "${materials[*]}" $presets soler2002 <<'EOF'
+python3 - "$out" "${materials[*]}" $presets $methods <<'EOF'
 import glob, os, sys
 from PIL import Image, ImageDraw
 out, materials, presets = sys.argv[1], sys.argv[2].split(), sys.argv[3:]

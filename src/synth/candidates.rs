@@ -17,7 +17,8 @@ pub enum Search {
     Full,
     /// Every candidate, as [`Search::Full`], found through Castellanos and Williams' dynamic
     /// kd-trees over the eigenvector-transformed neighbourhoods (§6, [`super::kdtrees`]):
-    /// the same choice, comparing only the candidates that can win. Isotropic passes under
+    /// within 1 + ε of its choice, comparing only the candidates that can win by more than
+    /// that ([`super::kdtrees::APPROXIMATION`]). Isotropic passes under
     /// [`super::Select::UsePenalty`] or [`super::Select::Argmin`], in a sequential order.
     KdTrees,
 }

@@ -22,7 +22,7 @@
 
 use super::candidates::Search;
 use super::engine::{PassPlan, PassStats, Select, State};
-use super::kdtrees::{Eigen, Flow, UseTrees};
+use super::kdtrees::{Eigen, Flow, UseTrees, APPROXIMATION};
 use super::metric::known_parts;
 use super::neighbourhood::Compared;
 use super::pass::{run_scheduled_pass, Choice, Schedule, VertexMatch};
@@ -285,11 +285,13 @@ impl<'a> IsoMatch<'a> {
         best
     }
 
-    /// The best of every candidate texel, through the kd-trees (exact: [`super::kdtrees`]):
-    /// first `seeds`, which hold every candidate continuing a neighbour's copy (the one
-    /// cheaper factor), then each tree nearest first until its lower bound times its
-    /// penalty cannot win. A vertex with unknown points (past an edge) scans every
-    /// candidate: the transform needs all of them.
+    /// The best of every candidate texel, through the kd-trees (ε-approximate:
+    /// [`super::kdtrees`]): first `seeds`, which hold every candidate continuing a
+    /// neighbour's copy (the one cheaper factor), then each tree nearest first until its
+    /// lower bound times its penalty cannot win by more than 1 + ε. A vertex with unknown
+    /// points (past an edge) searches the same way from its known points' fit, its
+    /// estimates scaled by their share of the weight (what its distances compare); scanning
+    /// every candidate for them took a quarter of a 128² level's search.
     fn search_trees(
         &mut self,
         trees: &UseTrees,
@@ -297,19 +299,21 @@ impl<'a> IsoMatch<'a> {
         factor: &impl Fn(u32) -> f32,
     ) -> (Best, usize) {
         let eigen = trees.eigen();
-        if self.known.contains(&false) {
-            return (self.scan(eigen.texels(), factor, true, (f32::INFINITY, 0, 0)), eigen.texels().len());
-        }
-        let query = eigen.query(&self.own);
+        let (query, share) = if self.known.contains(&false) {
+            eigen.partial_query(&self.own, &self.known)
+        } else {
+            (eigen.query(&self.own), 1.0)
+        };
+        let slack = 1.0 + APPROXIMATION;
         let mut seeds: Vec<(f32, u32)> = seeds
             .iter()
             .filter(|q| !self.adjacent.contains(q))
-            .map(|&q| (eigen.bound(&query, q) * factor(q), q))
+            .map(|&q| (eigen.bound(&query, q) * share * factor(q), q))
             .collect();
         seeds.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let (mut best, mut compared) = ((f32::INFINITY, 0, 0), 0);
         for &(low, q) in &seeds {
-            if low > best.0 {
+            if low * slack > best.0 {
                 break;
             }
             best = self.consider(q, factor(q), best);
@@ -321,14 +325,15 @@ impl<'a> IsoMatch<'a> {
         let mut seen = std::mem::take(&mut self.seen);
         seeds.iter().map(|s| &s.1).chain(&self.adjacent).for_each(|&q| seen[q as usize] = visit);
         let (base, bias) = self.fresh;
-        let radius = |excess: u32| best.get().0 / (base.powi(excess.min(60) as i32) * (1.0 + bias));
+        let radius =
+            |excess: u32| best.get().0 / (base.powi(excess.min(60) as i32) * (1.0 + bias) * slack * share);
         trees.search(&query, radius, |q, bound| {
             if seen[q as usize] == visit {
                 return Flow::Next;
             }
             // Every texel left in this tree starts a new copy: the same factor for all.
             let f = factor(q);
-            if bound * f > best.get().0 {
+            if bound * share * f * slack > best.get().0 {
                 return Flow::Leave;
             }
             seen[q as usize] = visit;
@@ -631,12 +636,14 @@ mod tests {
         Some((sample, map))
     }
 
-    /// On real photographs the kd-trees choose what the exhaustive search chooses: each
-    /// vertex of a 40² plane of random texels picks among every candidate under choosy
-    /// sampling's penalty (counts as the choices go, base 2, every candidate fresh), once
-    /// by scanning all of them and once through the trees.
+    /// On real photographs the kd-trees choose within their approximation of the exhaustive
+    /// search: each vertex of a 40² plane of random texels picks among every candidate
+    /// under choosy sampling's penalty (counts as the choices go, base 2, every candidate
+    /// fresh), once by scanning all of them and once through the trees; where the stencil
+    /// lies inside the plane the trees' choice is at most 1 + ε the scan's, and the trees
+    /// compare a fraction of the candidates.
     #[test]
-    fn the_kd_trees_choose_what_the_exhaustive_search_chooses_on_photographs() {
+    fn the_kd_trees_choose_within_their_approximation_of_the_exhaustive_search_on_photographs() {
         for photo in ["textures/gimp-Stone_stone33.png", "textures/sh3d-pebbles.jpg"] {
             let test = "the_kd_trees_choose_what_the_exhaustive_search_chooses";
             let Some((sample, map)) = photo_level(test, photo) else { return };
@@ -662,7 +669,7 @@ mod tests {
                 ),
             );
             let mut count = vec![0u32; w * sample.height];
-            let (mut same, mut compared, mut worst) = (0, 0, 1f64);
+            let (mut compared, mut worst, mut interior) = (0, 1f64, 0);
             for v in 0..side * side {
                 let floor = all.iter().map(|&q| count[q as usize]).min().unwrap();
                 let factor = |q: u32| 2f32.powi((count[q as usize] - floor) as i32) * 2.0;
@@ -671,17 +678,22 @@ mod tests {
                 let a = scan.choose(&all, [0, 0], factor, || [0, 0]);
                 let b = tree.choose(&[], [0, 0], factor, || [0, 0]);
                 let index = |t: [i32; 2]| t[1] as usize * w + t[0] as usize;
-                let (ta, tb) = (a.texel.unwrap(), b.texel.unwrap());
-                same += usize::from(ta == tb);
-                worst = worst.max(b.figure / a.figure.max(1e-12));
+                let (ta, _) = (a.texel.unwrap(), b.texel.unwrap());
+                // Only a vertex whose stencil lies inside the grid has a bound: one past
+                // an edge searches from an estimate of its missing points.
+                let (x, y) = (v % side, v / side);
+                if (REACH..side - REACH).contains(&x) && (REACH..side - REACH).contains(&y) {
+                    worst = worst.max(b.figure / a.figure.max(1e-12));
+                    interior += 1;
+                }
                 compared += b.compared;
-                // The trees counted their own choice; where the two differ (a tie), they
-                // part by one count.
+                // The trees counted their own choice; where the two differ, they part by
+                // one count.
                 count[index(ta)] += 1;
             }
             let n = side * side;
-            assert!(same * 100 >= n * 99, "{photo}: {same} of {n} choices agree");
-            assert!(worst < 1.0 + 1e-3, "{photo}: a tree's choice is {worst}× the scan's");
+            let bound = 1.0 + f64::from(super::super::kdtrees::APPROXIMATION) + 1e-3;
+            assert!(interior > n / 2 && worst <= bound, "{photo}: a tree's choice is {worst}× the scan's");
             let mean = compared as f64 / n as f64;
             assert!(mean < all.len() as f64 / 3.0, "{photo}: {mean} of {} compared", all.len());
         }
