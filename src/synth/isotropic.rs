@@ -678,7 +678,7 @@ mod tests {
                 let a = scan.choose(&all, [0, 0], factor, || [0, 0]);
                 let b = tree.choose(&[], [0, 0], factor, || [0, 0]);
                 let index = |t: [i32; 2]| t[1] as usize * w + t[0] as usize;
-                let (ta, _) = (a.texel.unwrap(), b.texel.unwrap());
+                let tb = b.texel.unwrap();
                 // Only a vertex whose stencil lies inside the grid has a bound: one past
                 // an edge searches from an estimate of its missing points.
                 let (x, y) = (v % side, v / side);
@@ -687,9 +687,9 @@ mod tests {
                     interior += 1;
                 }
                 compared += b.compared;
-                // The trees counted their own choice; where the two differ, they part by
-                // one count.
-                count[index(ta)] += 1;
+                // The trees count their own choices, so the scan's penalties follow them:
+                // both then judge every vertex under the same counts.
+                count[index(tb)] += 1;
             }
             let n = side * side;
             let bound = 1.0 + f64::from(super::super::kdtrees::APPROXIMATION) + 1e-3;
