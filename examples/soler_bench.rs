@@ -5,6 +5,7 @@
 //!
 //!   cargo run --release --example soler_bench -- PHOTO MESH [--crop N] [--across K]
 //!       [--threshold T] [--distortion D] [--band B] [--rotations R] [--colour lab|hsv|rgb] [--no-relax]
+//!       [--keep-borders]
 //!       [--seed S] [--seams N] [--close-ups SHEET.png] [--no-baseline]
 //!
 //! The sample is the photograph's top-left N×N crop (default 128), mapped at K sample
@@ -73,6 +74,7 @@ fn main() {
         band: flag("--band").map_or(defaults.band, |v| v.parse().expect("--band")),
         rotations: flag("--rotations").map_or(defaults.rotations, |v| v.parse().expect("--rotations")),
         relax: !has("--no-relax"),
+        move_borders: !has("--keep-borders"),
         seed: flag("--seed").map_or(0, |v| v.parse().expect("--seed")),
         colour,
         ..defaults

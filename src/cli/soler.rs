@@ -62,6 +62,10 @@ pub struct SolerArgs {
     /// Do not relax texture coordinates along patch borders after each fit.
     #[arg(long)]
     no_relax: bool,
+    /// Keep patch borders where the cluster hierarchy put them, instead of moving border
+    /// faces, once every face is mapped, to the neighbouring patch they continue better.
+    #[arg(long)]
+    keep_borders: bool,
     /// The face (0-based, in the file's order) the first patch holds: the mapping grows
     /// from there (default: the flattest large cluster).
     #[arg(long, value_name = "N")]
@@ -132,6 +136,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         max_fit_error: args.fit_threshold,
         colour,
         relax: !args.no_relax,
+        move_borders: !args.keep_borders,
         matching: true,
         seed: common.seed,
         first_face: args.first_face,
@@ -151,7 +156,8 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     let mut params_json = serde_json::json!({
         "method": "soler2002", "texels_per_unit": texels_per_unit, "rotations": params.rotations,
         "band": params.band, "max_distortion": params.max_flat_error, "fit_threshold": params.max_fit_error,
-        "colour_space": colour_name, "relax": params.relax, "seed": params.seed, "image": shown,
+        "colour_space": colour_name, "relax": params.relax,
+        "move_borders": params.move_borders, "seed": params.seed, "image": shown,
         "first_face": params.first_face, "orientation": params.orientation,
     });
     let provenance = Provenance {

@@ -115,6 +115,9 @@ impl Mapper<'_> {
                 Round { charts: &charts, reports: &mut reports, errors: &mut errors, mapping: &mut mapping };
             eligible = self.drain(&eligible, &mut round, rng, progress)?;
         }
+        if self.params.matching && self.params.move_borders {
+            super::borders::move_borders(self, &mut mapping);
+        }
         for (report, errors) in reports.iter_mut().zip(&mut errors) {
             errors.sort_by(f32::total_cmp);
             report.median_fit_error = errors.get(errors.len() / 2).copied().unwrap_or(f32::NAN);

@@ -11,7 +11,8 @@
 //!   finished by a near-isometric flattening of each cluster's faces (`arap`).
 //! - [`fit`]: mask fitting by FFT correlation over rotations of the sample (§4.2).
 //! - [`mapping`]: the coarse-to-fine priority queue (§2.2) and the masks (§4.1);
-//!   [`relax`]: the relaxation along borders (§4.4).
+//!   [`relax`]: the relaxation along borders (§4.4); `borders`: once every face is mapped,
+//!   border faces moved to the neighbouring patch whose texture they continue better.
 //! - [`output`]: the result as a PLY (or OBJ) with per-corner texture coordinates, and
 //!   reading it back for `render` and `export`.
 //!
@@ -32,6 +33,7 @@
 //! ```
 
 mod arap;
+mod borders;
 pub mod chart;
 pub mod fit;
 pub mod graph;
@@ -76,6 +78,10 @@ pub struct SolerParams {
     pub colour: ColourSpace,
     /// Relax the coordinates along textured borders after each fit (§4.4; default on).
     pub relax: bool,
+    /// Once every face is mapped, move border faces to the patch across an edge wherever
+    /// its texture, continued over them, lowers the jump along their edges
+    /// (default on). Borders then run where the patches' textures agree.
+    pub move_borders: bool,
     /// Match each patch to its neighbours (default on). Off, every patch is placed at
     /// random where it fits: the baseline that measures what matching buys.
     pub matching: bool,
@@ -101,6 +107,7 @@ impl Default for SolerParams {
             max_fit_error: 0.3,
             colour: ColourSpace::Lab,
             relax: true,
+            move_borders: true,
             matching: true,
             seed: 0,
             first_face: None,
