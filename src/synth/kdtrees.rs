@@ -157,7 +157,7 @@ impl Eigen {
             .map(|&i| centred(i) - (0..EIGEN_DIMS).map(|k| b(k, i) * fit[k]).sum::<f64>())
             .map(|r| r * r)
             .sum();
-        let total: f32 = (0..POINTS).map(|p| point_weight(p)).sum();
+        let total: f32 = (0..POINTS).map(point_weight).sum();
         let share = (0..POINTS).filter(|&p| known[p]).map(point_weight).sum::<f32>() / total;
         let mut out = [0f32; TREE_DIMS];
         out.iter_mut().zip(fit.iter()).for_each(|(o, &c)| *o = c as f32);

@@ -356,7 +356,7 @@ mod tests {
     #[test]
     fn jitter_moves_within_its_amplitude_and_follows_the_seed() {
         let sample = periodic_sample(4);
-        let uv: Vec<[i32; 2]> = (0..200).map(|v| [(v % 16) as i32, (v / 16 % 16) as i32]).collect();
+        let uv: Vec<[i32; 2]> = (0..200i32).map(|v| [v % 16, v / 16 % 16]).collect();
         let state = with_labels(uv.clone(), &sample);
         let moved = |texels: f32, seed: u64| jitter(state.clone(), &sample, 2, texels, seed);
         assert_eq!(moved(0.45, 1).uv, uv);
