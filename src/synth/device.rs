@@ -23,17 +23,6 @@ pub enum Device {
     Gpu,
 }
 
-impl Device {
-    /// Its name on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Device::Auto => "auto",
-            Device::Cpu => "cpu",
-            Device::Gpu => "gpu",
-        }
-    }
-}
-
 /// Whether any pass of `preset` on `targets` may have a GPU form: a plane level and an
 /// interleaved square-template pass.
 pub(crate) fn may_use_gpu(targets: &[TargetLevel], preset: &Preset) -> bool {
@@ -46,7 +35,8 @@ pub(crate) fn may_use_gpu(targets: &[TargetLevel], preset: &Preset) -> bool {
 
 /// Runs the passes that can run on the GPU there, and counts per level which ran where.
 pub(crate) struct Runner {
-    device: Device,
+    /// Why no GPU is open, for the reports ("" under [`Device::Cpu`], which asked for none).
+    why_no_gpu: String,
     #[cfg(feature = "gpu")]
     gpu: Option<super::gpu::GpuSynth>,
     on_gpu: usize,
@@ -60,26 +50,21 @@ impl Runner {
     /// and the machine has a hardware adapter.
     pub(crate) fn open(device: Device, wanted: bool) -> Result<Runner> {
         #[cfg(feature = "gpu")]
-        let gpu = match device {
-            Device::Cpu => None,
-            Device::Gpu => Some(super::gpu::GpuSynth::new()?),
-            Device::Auto if wanted && super::gpu::hardware_adapter() => match super::gpu::GpuSynth::new() {
-                Ok(gpu) => Some(gpu),
-                Err(e) => {
-                    tracing::warn!("synthesizing on the CPU: {e}");
-                    None
-                }
-            },
-            Device::Auto => None,
+        let (gpu, why_no_gpu) = open_gpu(device, wanted)?;
+        #[cfg(not(feature = "gpu"))]
+        let why_no_gpu = match device {
+            Device::Gpu => {
+                return Err(crate::Error::gpu(
+                    "this btfsynth was built without the GPU (cargo feature `gpu`)",
+                ))
+            }
+            Device::Auto => "built without the GPU".into(),
+            Device::Cpu => String::new(),
         };
         #[cfg(not(feature = "gpu"))]
         let _ = wanted;
-        #[cfg(not(feature = "gpu"))]
-        if device == Device::Gpu {
-            return Err(crate::Error::gpu("this btfsynth was built without the GPU (cargo feature `gpu`)"));
-        }
         Ok(Runner {
-            device,
+            why_no_gpu,
             #[cfg(feature = "gpu")]
             gpu,
             on_gpu: 0,
@@ -122,8 +107,8 @@ impl Runner {
                 g + c,
                 why.unwrap_or_default()
             ),
-            (None, _, _) if self.device == Device::Auto => "cpu (no hardware GPU adapter)".into(),
-            (None, _, _) => "cpu".into(),
+            (None, _, _) if self.why_no_gpu.is_empty() => "cpu".into(),
+            (None, _, _) => format!("cpu ({})", self.why_no_gpu),
         }
     }
 
@@ -134,4 +119,26 @@ impl Runner {
         }
         None
     }
+}
+
+/// The GPU `device` asks for (see [`Runner::open`]), or why there is none ("" under
+/// [`Device::Cpu`]).
+#[cfg(feature = "gpu")]
+fn open_gpu(device: Device, wanted: bool) -> Result<(Option<super::gpu::GpuSynth>, String)> {
+    use super::gpu::{hardware_adapter, GpuSynth};
+    Ok(match device {
+        Device::Cpu => (None, String::new()),
+        Device::Gpu => (Some(GpuSynth::new()?), String::new()),
+        Device::Auto if !wanted => (None, "no pass has a GPU form".into()),
+        Device::Auto if !hardware_adapter() => (None, "no hardware GPU adapter".into()),
+        // A GPU that is there but does not open is no reason to fail: the CPU gives the same
+        // bytes.
+        Device::Auto => match GpuSynth::new() {
+            Ok(gpu) => (Some(gpu), String::new()),
+            Err(e) => {
+                tracing::warn!("synthesizing on the CPU: {e}");
+                (None, format!("the GPU did not open: {e}"))
+            }
+        },
+    })
 }
