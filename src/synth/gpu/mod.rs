@@ -209,51 +209,58 @@ fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
     };
     let parent = match (template.parent(), job.coarse, job.coarse_sample) {
         (Some(kind), Some(coarse), Some(coarse_sample)) => {
-            let grid = match kind {
-                ParentTemplate::Narrow => job.target.parent_neighbourhoods.as_ref().and_then(grid_of),
-                ParentTemplate::Wide => job.coarser.and_then(|c| grid_of(&c.neighbourhoods)),
-            };
-            let Some(grid) = grid else { return Err("a parent template off the grid".into()) };
-            let metric_template = match kind {
-                ParentTemplate::Narrow => job.target.parent_template,
-                ParentTemplate::Wide => job.coarser.map_or(0, |c| c.template),
-            };
-            if grid.template != metric_template || job.target.parents.len() != job.target.vertices {
-                return Err("a parent template unlike its grid's".into());
-            }
-            Some((grid, kind, coarse, coarse_sample))
+            Some((parent_grid(job, kind)?, kind, coarse, coarse_sample))
         }
         _ => None,
     };
-    let templates = std::iter::once(grid.template).chain(parent.map(|p| p.0.template));
+    let form = Form { metric, grid, parent, choosy, search, colouring, seed };
+    fits_the_shader(job, &form)?;
+    Ok(form)
+}
+
+/// The grid a parent template of `kind` reads, where it is one the metric reads too.
+fn parent_grid(job: &PassJob, kind: ParentTemplate) -> std::result::Result<Grid, String> {
+    let (grid, metric_template) = match kind {
+        ParentTemplate::Narrow => {
+            (job.target.parent_neighbourhoods.as_ref().and_then(grid_of), job.target.parent_template)
+        }
+        ParentTemplate::Wide => {
+            (job.coarser.and_then(|c| grid_of(&c.neighbourhoods)), job.coarser.map_or(0, |c| c.template))
+        }
+    };
+    let Some(grid) = grid else { return Err("a parent template off the grid".into()) };
+    if grid.template != metric_template || job.target.parents.len() != job.target.vertices {
+        return Err("a parent template unlike its grid's".into());
+    }
+    Ok(grid)
+}
+
+/// Whether `form` stays within what the shader holds: odd templates within the maps'
+/// border, the candidate table, 16-bit coordinates, and the metric's maps on both levels.
+fn fits_the_shader(job: &PassJob, form: &Form) -> std::result::Result<(), String> {
+    let templates = std::iter::once(form.grid.template).chain(form.parent.map(|p| p.0.template));
     if templates.into_iter().any(|t| t > MAX_TEMPLATE || t % 2 == 0) {
         return Err(format!("a template wider than {MAX_TEMPLATE}"));
     }
-    if let Search::KCoherence { k } = search {
-        if grid.template * grid.template * (k.min(job.sample.k) + 1) > MAX_ENTRIES {
+    if let Search::KCoherence { k } = form.search {
+        if form.grid.template * form.grid.template * (k.min(job.sample.k) + 1) > MAX_ENTRIES {
             return Err("more candidates per vertex than the shader's table holds".into());
         }
     }
-    let samples = std::iter::once(job.sample).chain(parent.map(|p| p.3));
+    let samples = std::iter::once(job.sample).chain(form.parent.map(|p| p.3));
     if samples.into_iter().any(|s| s.width >= 1 << 16 || s.height >= 1 << 16 || s.width * s.height >= 1 << 29)
     {
         return Err("a sample level of 2^29 texels or 65536 a side".into());
     }
-    let map = |s: &'a SampleLevel| match metric {
-        SquareMetric::Gamma => Some(None),
-        SquareMetric::Appearance => s.appearance.as_ref().map(Some),
-        SquareMetric::Colour => s.colour.as_ref().map(Some),
+    let dims = |s: &SampleLevel| match form.metric {
+        SquareMetric::Gamma => Some(0),
+        _ => map_of(s, form.metric).map(|m| m.dims),
     };
-    let (own_map, parent_map) = (map(job.sample), parent.map(|p| map(p.3)));
-    let dims = |m: Option<&AppearanceMap>| m.map(|m| m.dims);
-    match (own_map, parent_map) {
-        (None, _) | (_, Some(None)) => return Err("a sample level without the metric's map".into()),
-        (Some(own), Some(Some(up))) if dims(own) != dims(up) => {
-            return Err("maps of different dimensions on two levels".into())
-        }
-        _ => {}
+    match (dims(job.sample), form.parent.map(|p| dims(p.3))) {
+        (None, _) | (_, Some(None)) => Err("a sample level without the metric's map".into()),
+        (Some(own), Some(Some(up))) if own != up => Err("maps of different dimensions on two levels".into()),
+        _ => Ok(()),
     }
-    Ok(Form { metric, grid, parent, choosy, search, colouring, seed })
 }
 
 /// What a level's tables were built for.
@@ -379,228 +386,89 @@ impl GpuSynth {
             Err(why) => return Ok(Err(why)),
         };
         let key = LevelKey { level: job.level, metric: form.metric, parent: form.parent.map(|p| p.1) };
-        if self.level.as_ref().is_none_or(|l| l.key != key) {
-            self.level = None;
-            match self.build_level(job, &form, key)? {
-                Ok(level) => self.level = Some(level),
-                Err(why) => return Ok(Err(why)),
+        let level = match self.level.take() {
+            Some(level) if level.key == key => level,
+            other => {
+                // The last level's buffers go before this one's are made.
+                drop(other);
+                let plan = plan_level(job, &form, key);
+                if let Err(why) = fits(&self.gpu.device.limits(), &plan) {
+                    return Ok(Err(why));
+                }
+                self.gpu.scoped("hold the synthesis buffers", || Ok(self.upload(plan)))?
             }
-        }
-        self.dispatch(job, &form, state).map(Ok)
+        };
+        let stats = self.dispatch(&level, job, &form, state);
+        self.level = Some(level);
+        stats.map(Ok)
     }
 
-    /// Uploads a level's tables and creates its buffers; `Err` if they exceed the adapter's
-    /// limits.
-    fn build_level(
-        &self,
-        job: &PassJob,
-        form: &Form,
-        key: LevelKey,
-    ) -> Result<std::result::Result<LevelBuffers, String>> {
-        let (target, sample) = (job.target, job.sample);
-        let mut tables = Vec::new();
-        let two_level = form.parent.is_some();
-        let lists =
-            if two_level { sample.knn_two_level.as_ref().unwrap_or(&sample.knn) } else { &sample.knn };
-        let mut base = Params { off_knn: push(&mut tables, lists.iter().copied()), ..Params::default() };
-        let [labels, gamma, map, stride] = push_sample(&mut tables, sample, form.metric);
-        (base.off_labels, base.off_gamma, base.off_map, base.map_stride) = (labels, gamma, map, stride);
-        let mut coarse_words = vec![0u32; 2];
-        if let Some((grid, _, coarse, coarse_sample)) = form.parent {
-            let [labels, gamma, map, stride] = push_sample(&mut tables, coarse_sample, form.metric);
-            (base.off_p_labels, base.off_p_gamma, base.off_p_map, base.p_map_stride) =
-                (labels, gamma, map, stride);
-            base.off_parents = push(&mut tables, target.parents.iter().map(|p| p.vertex));
-            (base.p_grid_w, base.p_grid_h, base.p_wraps) =
-                (grid.width as u32, grid.height as u32, grid.wraps.into());
-            (base.p_side, base.p_sw, base.p_sh) =
-                (grid.template as u32, coarse_sample.width as u32, coarse_sample.height as u32);
-            base.p_textons = coarse_sample.textons as u32;
-            base.parent = 1;
-            coarse_words = pack_state(coarse);
-        }
-        base.off_classes = push(&mut tables, form.colouring.classes.iter().flatten().copied());
-        base.off_full = push(&mut tables, full_candidates(sample, target.template / 2));
-        let g = form.grid;
-        (base.grid_w, base.grid_h, base.side, base.wraps) =
-            (g.width as u32, g.height as u32, g.template as u32, g.wraps.into());
-        (base.sw, base.sh, base.tileable) =
-            (sample.width as u32, sample.height as u32, sample.tileable.into());
-        (base.radius, base.list_stride, base.textons) =
-            ((target.template / 2) as u32, sample.k as u32, sample.textons as u32);
-        base.metric = u32::from(form.metric != SquareMetric::Gamma);
-        base.dims = map_of(sample, form.metric).map_or(0, |m| m.dims as u32);
-        let vertices = target.vertices;
-        let texels = sample.width * sample.height;
-        let mut parts = Vec::new();
-        let mut offset = 0u32;
-        for (c, class) in form.colouring.classes.iter().enumerate() {
-            for part in class.chunks(CHUNK) {
-                parts.push((c, offset, part.len() as u32));
-                offset += part.len() as u32;
-            }
-        }
-        let chunk = form.colouring.classes.iter().map(Vec::len).max().unwrap_or(0).min(CHUNK);
-        let classes = parts.len() as u64;
-        let limits = self.gpu.device.limits();
-        let scratch_bytes = chunk * STRIDE * 4;
-        // Loop iterations per candidate: each template pixel, and each of its values.
-        let per_pixel = if form.metric == SquareMetric::Gamma { 1 } else { 1 + base.dims as usize };
-        let pixels = g.template * g.template + form.parent.map_or(0, |p| p.0.template * p.0.template);
-        let batch = (LOOP_BUDGET / (pixels * per_pixel + 16)).max(1) as u32;
-        let most = full_candidates(sample, target.template / 2).len().max(MAX_ENTRIES) as u32;
-        let batches = most.div_ceil(batch) as usize;
-        let largest = [
-            tables.len() * 4,
-            vertices * 16,
-            (2 * vertices + 1) * 4,
-            texels * 4,
-            coarse_words.len() * 4,
-            scratch_bytes,
-        ];
-        let largest = largest.into_iter().max().unwrap_or(0) as u64;
-        if largest > limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)
-            || (classes + batches as u64) * PARAMS_STRIDE > limits.max_buffer_size
-        {
-            return Ok(Err(format!("{largest} bytes exceed the adapter's buffers")));
-        }
+    /// A level's buffers, its tables uploaded.
+    fn upload(&self, plan: LevelPlan) -> LevelBuffers {
         use wgpu::util::DeviceExt;
         use wgpu::BufferUsages as U;
-        let gpu = &self.gpu;
-        let buffers = gpu.scoped("hold the synthesis buffers", || {
-            let device = &gpu.device;
-            let init = |label, words: &[u32], usage| {
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: bytemuck::cast_slice(words),
-                    usage,
-                })
-            };
-            let empty = |label, bytes: usize, usage| {
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: (bytes.max(4) as u64).next_multiple_of(4),
-                    usage,
-                    mapped_at_creation: false,
-                })
-            };
-            let tables = init("synth tables", &tables, U::STORAGE);
-            let coarse = init("synth coarse state", &coarse_words, U::STORAGE);
-            let params = empty("synth params", (classes * PARAMS_STRIDE) as usize, U::UNIFORM | U::COPY_DST);
-            let starts: Vec<u32> = (0..batches as u32)
-                .flat_map(|b| {
-                    std::iter::once(b * batch).chain(std::iter::repeat_n(0, PARAMS_STRIDE as usize / 4 - 1))
-                })
-                .collect();
-            let starts = init("synth batch starts", &starts, U::UNIFORM);
-            let state = empty("synth state", vertices * 8, U::STORAGE | U::COPY_DST | U::COPY_SRC);
-            let pass_data = empty("synth pass data", (2 * vertices + 1) * 4, U::STORAGE | U::COPY_DST);
-            let counts = empty("synth counts", texels * 4, U::STORAGE | U::COPY_DST);
-            let outs = empty("synth outputs", vertices * 16, U::STORAGE | U::COPY_SRC);
-            let readback = empty("synth readback", vertices * 24, U::MAP_READ | U::COPY_DST);
-            let scratch = empty("synth candidate lists", scratch_bytes, U::STORAGE);
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("synth pass"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &params,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(std::mem::size_of::<Params>() as u64),
-                        }),
-                    },
-                    wgpu::BindGroupEntry { binding: 1, resource: state.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: coarse.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: tables.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: pass_data.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 5, resource: counts.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 6, resource: outs.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 7, resource: scratch.as_entire_binding() },
-                    wgpu::BindGroupEntry {
-                        binding: 8,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &starts,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(16),
-                        }),
-                    },
-                ],
-            });
-            Ok(LevelBuffers {
-                key,
-                params,
-                state,
-                pass_data,
-                counts,
-                outs,
-                readback,
-                parts,
-                batch,
-                batches,
-                bind_group,
-                base,
-                vertices,
+        let device = &self.gpu.device;
+        let init = |label, words: &[u32], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(words),
+                usage,
             })
-        })?;
-        Ok(Ok(buffers))
+        };
+        let empty = |label, bytes: usize, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (bytes.max(4) as u64).next_multiple_of(4),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let vertices = plan.vertices;
+        let buffers = [
+            empty("synth params", plan.parts.len() * PARAMS_STRIDE as usize, U::UNIFORM | U::COPY_DST),
+            empty("synth state", vertices * 8, U::STORAGE | U::COPY_DST | U::COPY_SRC),
+            init("synth coarse state", &plan.coarse, U::STORAGE),
+            init("synth tables", &plan.tables, U::STORAGE),
+            empty("synth pass data", (2 * vertices + 1) * 4, U::STORAGE | U::COPY_DST),
+            empty("synth counts", plan.texels * 4, U::STORAGE | U::COPY_DST),
+            empty("synth outputs", vertices * 16, U::STORAGE | U::COPY_SRC),
+            empty("synth candidate lists", plan.scratch_bytes, U::STORAGE),
+            init("synth batch starts", &batch_starts(plan.batch, plan.batches), U::UNIFORM),
+        ];
+        let bind_group = bind_group(device, &self.layout, &buffers);
+        let [params, state, _, _, pass_data, counts, outs, _, _] = buffers;
+        LevelBuffers {
+            key: plan.key,
+            params,
+            state,
+            pass_data,
+            counts,
+            outs,
+            readback: empty("synth readback", vertices * 24, U::MAP_READ | U::COPY_DST),
+            parts: plan.parts,
+            batch: plan.batch,
+            batches: plan.batches,
+            bind_group,
+            base: plan.base,
+            vertices,
+        }
     }
 
     /// One pass: the state up, one dispatch per colour (and the choosy counts moved after
     /// each), the state and the choices back.
-    fn dispatch(&mut self, job: &PassJob, form: &Form, state: &mut State) -> Result<PassStats> {
-        let level = self.level.as_ref().expect("built before");
-        let (gpu, sample) = (&self.gpu, job.sample);
-        let vertices = level.vertices;
-        let radius = job.target.template / 2;
-        // The pass's own data: each vertex's draw (where it has no candidate) and the choosy
-        // factor by use count. A vertex's own coordinate is the forward shift of its own
-        // pixel, and stays as it is until the vertex's sub-pass: where it is a candidate
-        // texel, the vertex has a candidate and draws nothing. Only the others draw (as the
-        // CPU would: seeded by the pass and the vertex), or all of them where a full search
-        // has no candidate at all.
-        let no_full = form.search == Search::Full && full_candidates(sample, radius).is_empty();
-        let draws: Vec<u32> = state
-            .uv
-            .par_iter()
-            .enumerate()
-            .map(|(v, &[x, y])| {
-                if !no_full && sample.is_candidate(x.into(), y.into(), radius) {
-                    return 0;
-                }
-                let mut rng = ChaCha8Rng::seed_from_u64(form.seed ^ (v as u64).wrapping_mul(VERTEX_SEED));
-                let [x, y] = super::start::random_texel(sample, radius, &mut rng);
-                y as u32 * sample.width as u32 + x as u32
-            })
-            .collect();
-        let table = match form.choosy {
-            Some(strength) => choosy_factors(vertices, sample, radius, strength),
-            None => vec![1.0; vertices + 1],
-        };
-        let pass_words: Vec<u32> = draws.into_iter().chain(table.iter().map(|f| f.to_bits())).collect();
-        let mut params = level.base;
-        params.off_draws = 0;
-        params.off_table = vertices as u32;
-        params.choosy = form.choosy.is_some().into();
-        params.fresh = 1.0 + job.pass.coherence_bias;
-        (params.full, params.list_k) = match form.search {
-            Search::KCoherence { k } => (0, k.min(sample.k) as u32),
-            _ => (1, 0),
-        };
-        params.full_count = match form.search {
-            Search::Full => full_candidates(sample, radius).len() as u32,
-            _ => 0,
-        };
-        params.batch = level.batch;
-        let most = match form.search {
-            Search::Full => params.full_count.max(1),
-            _ => (form.grid.template * form.grid.template) as u32 * params.list_k.max(1),
-        };
-        let batches = (most.div_ceil(level.batch) as usize).min(level.batches);
+    fn dispatch(
+        &mut self,
+        level: &LevelBuffers,
+        job: &PassJob,
+        form: &Form,
+        state: &mut State,
+    ) -> Result<PassStats> {
+        let sample = job.sample;
+        let (params, batches) = pass_params(level, job, form);
         let mut slots = vec![0u8; level.parts.len() * PARAMS_STRIDE as usize];
         let mut groups = Vec::new();
         for (i, &(_, offset, count)) in level.parts.iter().enumerate() {
+            // A dispatch may have at most 65535 workgroups a side.
             let total = count.div_ceil(GROUP);
             let x = total.clamp(1, 65535);
             groups.push((x, total.div_ceil(x)));
@@ -610,10 +478,10 @@ impl GpuSynth {
             let at = i * PARAMS_STRIDE as usize;
             slots[at..at + std::mem::size_of::<Params>()].copy_from_slice(bytemuck::bytes_of(&p));
         }
-        let queue = &gpu.queue;
+        let queue = &self.gpu.queue;
         queue.write_buffer(&level.params, 0, &slots);
         queue.write_buffer(&level.state, 0, bytemuck::cast_slice(&pack_state(state)));
-        queue.write_buffer(&level.pass_data, 0, bytemuck::cast_slice(&pass_words));
+        queue.write_buffer(&level.pass_data, 0, bytemuck::cast_slice(&pass_words(job, form, state)));
         if form.choosy.is_some() {
             let mut counts = vec![0u32; sample.width * sample.height];
             for &[x, y] in &state.uv {
@@ -621,7 +489,24 @@ impl GpuSynth {
             }
             queue.write_buffer(&level.counts, 0, bytemuck::cast_slice(&counts));
         }
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let encoder = self.encode(level, &groups, batches, form.choosy.is_some());
+        queue.submit([encoder.finish()]);
+        let words = read_words(&self.gpu, &level.readback)?;
+        self.gpu.check()?;
+        Ok(take_choices(level.vertices, &words, form, state))
+    }
+
+    /// The pass's commands: each part of a sub-pass gathers, scores in `batches` batches and
+    /// takes its winners against the counts as the sub-pass found them; then the counts
+    /// move; at the end the state and the outputs are copied for reading.
+    fn encode(
+        &self,
+        level: &LevelBuffers,
+        groups: &[(u32, u32)],
+        batches: usize,
+        choosy: bool,
+    ) -> wgpu::CommandEncoder {
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("synth sub-passes"),
@@ -634,43 +519,256 @@ impl GpuSynth {
                 pass.set_bind_group(0, &level.bind_group, &offsets);
                 pass.dispatch_workgroups(groups[part].0, groups[part].1, 1);
             };
-            // Each part of a sub-pass gathers, scores in batches and takes its winners
-            // against the counts as the sub-pass found them; then the counts move.
             let mut first = 0;
-            while first < level.parts.len() {
-                let class = level.parts[first].0;
-                let end = first + level.parts[first..].iter().take_while(|p| p.0 == class).count();
-                for part in first..end {
+            for class in level.parts.chunk_by(|a, b| a.0 == b.0) {
+                let parts = first..first + class.len();
+                first = parts.end;
+                for part in parts.clone() {
                     run(gather, part, 0);
                     (0..batches).for_each(|b| run(score, part, b));
                     run(finish, part, 0);
                 }
-                if form.choosy.is_some() {
-                    (first..end).for_each(|part| run(apply, part, 0));
+                if choosy {
+                    parts.for_each(|part| run(apply, part, 0));
                 }
-                first = end;
             }
         }
-        let state_bytes = vertices as u64 * 8;
+        let state_bytes = level.vertices as u64 * 8;
         encoder.copy_buffer_to_buffer(&level.state, 0, &level.readback, 0, state_bytes);
-        encoder.copy_buffer_to_buffer(&level.outs, 0, &level.readback, state_bytes, vertices as u64 * 16);
-        queue.submit([encoder.finish()]);
-        let words = read_words(gpu, &level.readback)?;
-        gpu.check()?;
-        let (packed, outs) = words.split_at(2 * vertices);
-        for (v, w) in packed.chunks_exact(2).enumerate() {
-            state.uv[v] = [(w[0] & 0xffff) as i32, (w[0] >> 16) as i32];
-            state.labels[v] = w[1] as u16;
-        }
-        // The sums in the CPU's order: sub-pass by sub-pass, vertex by vertex.
-        let (mut figure, mut compared) = (0.0f64, 0usize);
-        for &v in form.colouring.classes.iter().flatten() {
-            figure += f32::from_bits(outs[4 * v as usize]) as f64;
-            compared += outs[4 * v as usize + 1] as usize;
-        }
-        let n = vertices.max(1) as f64;
-        Ok(PassStats { mean_best: figure / n, mean_candidates: compared as f64 / n })
+        encoder.copy_buffer_to_buffer(
+            &level.outs,
+            0,
+            &level.readback,
+            state_bytes,
+            level.vertices as u64 * 16,
+        );
+        encoder
     }
+}
+
+/// What a level's buffers hold, before they exist.
+struct LevelPlan {
+    key: LevelKey,
+    /// The sample level's (and the parent's) tables, the colouring and the full candidates.
+    tables: Vec<u32>,
+    /// The coarser level's final state, packed (two words where there is no parent).
+    coarse: Vec<u32>,
+    /// The tables' word offsets and the parameters that do not change between passes.
+    base: Params,
+    parts: Vec<(usize, u32, u32)>,
+    batch: u32,
+    batches: usize,
+    vertices: usize,
+    texels: usize,
+    scratch_bytes: usize,
+}
+
+/// The tables, parts and batches of `job`'s level under `form`.
+fn plan_level(job: &PassJob, form: &Form, key: LevelKey) -> LevelPlan {
+    let (target, sample) = (job.target, job.sample);
+    let mut tables = Vec::new();
+    let lists = match form.parent {
+        Some(_) => sample.knn_two_level.as_ref().unwrap_or(&sample.knn),
+        None => &sample.knn,
+    };
+    let mut base = Params { off_knn: push(&mut tables, lists.iter().copied()), ..Params::default() };
+    [base.off_labels, base.off_gamma, base.off_map, base.map_stride] =
+        push_sample(&mut tables, sample, form.metric);
+    let mut coarse = vec![0u32; 2];
+    if let Some((grid, _, coarse_state, coarse_sample)) = form.parent {
+        [base.off_p_labels, base.off_p_gamma, base.off_p_map, base.p_map_stride] =
+            push_sample(&mut tables, coarse_sample, form.metric);
+        base.off_parents = push(&mut tables, target.parents.iter().map(|p| p.vertex));
+        (base.p_grid_w, base.p_grid_h, base.p_wraps) =
+            (grid.width as u32, grid.height as u32, grid.wraps.into());
+        (base.p_side, base.p_sw, base.p_sh) =
+            (grid.template as u32, coarse_sample.width as u32, coarse_sample.height as u32);
+        base.p_textons = coarse_sample.textons as u32;
+        base.parent = 1;
+        coarse = pack_state(coarse_state);
+    }
+    base.off_classes = push(&mut tables, form.colouring.classes.iter().flatten().copied());
+    base.off_full = push(&mut tables, full_candidates(sample, target.template / 2));
+    let g = form.grid;
+    (base.grid_w, base.grid_h, base.side, base.wraps) =
+        (g.width as u32, g.height as u32, g.template as u32, g.wraps.into());
+    (base.sw, base.sh, base.tileable) = (sample.width as u32, sample.height as u32, sample.tileable.into());
+    (base.radius, base.list_stride, base.textons) =
+        ((target.template / 2) as u32, sample.k as u32, sample.textons as u32);
+    base.metric = u32::from(form.metric != SquareMetric::Gamma);
+    base.dims = map_of(sample, form.metric).map_or(0, |m| m.dims as u32);
+    let (batch, batches) = batching(job, form, base.dims as usize);
+    let widest = form.colouring.classes.iter().map(Vec::len).max().unwrap_or(0).min(CHUNK);
+    LevelPlan {
+        key,
+        tables,
+        coarse,
+        base,
+        parts: parts_of(form.colouring),
+        batch,
+        batches,
+        vertices: target.vertices,
+        texels: sample.width * sample.height,
+        scratch_bytes: widest * STRIDE * 4,
+    }
+}
+
+/// The sub-passes' parts of at most [`CHUNK`] vertices: (class, offset in the concatenated
+/// classes, vertices).
+fn parts_of(colouring: &Colouring) -> Vec<(usize, u32, u32)> {
+    let mut parts = Vec::new();
+    let mut offset = 0u32;
+    for (c, class) in colouring.classes.iter().enumerate() {
+        for part in class.chunks(CHUNK) {
+            parts.push((c, offset, part.len() as u32));
+            offset += part.len() as u32;
+        }
+    }
+    parts
+}
+
+/// Candidates a score dispatch takes per vertex (within [`LOOP_BUDGET`] loop iterations:
+/// each template pixel, and each of its map's values), and the most dispatches a pass may
+/// need.
+fn batching(job: &PassJob, form: &Form, dims: usize) -> (u32, usize) {
+    let per_pixel = if form.metric == SquareMetric::Gamma { 1 } else { 1 + dims };
+    let g = form.grid.template;
+    let pixels = g * g + form.parent.map_or(0, |p| p.0.template * p.0.template);
+    let batch = (LOOP_BUDGET / (pixels * per_pixel + 16)).max(1) as u32;
+    let most = full_candidates(job.sample, job.target.template / 2).len().max(MAX_ENTRIES) as u32;
+    (batch, most.div_ceil(batch) as usize)
+}
+
+/// Whether `plan`'s buffers fit the adapter's `limits`; why not, if not.
+fn fits(limits: &wgpu::Limits, plan: &LevelPlan) -> std::result::Result<(), String> {
+    let storage = [
+        plan.tables.len() * 4,
+        plan.vertices * 16,
+        (2 * plan.vertices + 1) * 4,
+        plan.texels * 4,
+        plan.coarse.len() * 4,
+        plan.scratch_bytes,
+    ];
+    let largest = storage.into_iter().max().unwrap_or(0) as u64;
+    let uniform = plan.parts.len().max(plan.batches) as u64 * PARAMS_STRIDE;
+    let readback = plan.vertices as u64 * 24;
+    if largest > limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)
+        || uniform.max(readback) > limits.max_buffer_size
+    {
+        return Err(format!("{} bytes exceed the adapter's buffers", largest.max(uniform).max(readback)));
+    }
+    Ok(())
+}
+
+/// Each score dispatch's first candidate, one uniform slot each.
+fn batch_starts(batch: u32, batches: usize) -> Vec<u32> {
+    (0..batches as u32)
+        .flat_map(|b| {
+            std::iter::once(b * batch).chain(std::iter::repeat_n(0, PARAMS_STRIDE as usize / 4 - 1))
+        })
+        .collect()
+}
+
+/// The parameters every sub-pass of the pass shares, and how many score dispatches it needs.
+fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usize) {
+    let sample = job.sample;
+    let radius = job.target.template / 2;
+    let mut params = level.base;
+    params.off_draws = 0;
+    params.off_table = level.vertices as u32;
+    params.choosy = form.choosy.is_some().into();
+    params.fresh = 1.0 + job.pass.coherence_bias;
+    (params.full, params.list_k) = match form.search {
+        Search::KCoherence { k } => (0, k.min(sample.k) as u32),
+        _ => (1, 0),
+    };
+    params.full_count = match form.search {
+        Search::Full => full_candidates(sample, radius).len() as u32,
+        _ => 0,
+    };
+    params.batch = level.batch;
+    let most = match form.search {
+        Search::Full => params.full_count.max(1),
+        _ => (form.grid.template * form.grid.template) as u32 * params.list_k.max(1),
+    };
+    (params, (most.div_ceil(level.batch) as usize).min(level.batches))
+}
+
+/// The pass's own data: each vertex's draw (where it has no candidate), then the choosy
+/// factor by use count. A vertex's own coordinate is the forward shift of its own pixel,
+/// and stays as it is until the vertex's sub-pass: where it is a candidate texel, the
+/// vertex has a candidate and draws nothing. Only the others draw (as the CPU would: seeded
+/// by the pass and the vertex), or all of them where a full search has no candidate at all.
+fn pass_words(job: &PassJob, form: &Form, state: &State) -> Vec<u32> {
+    let (sample, radius) = (job.sample, job.target.template / 2);
+    let no_full = form.search == Search::Full && full_candidates(sample, radius).is_empty();
+    let draws: Vec<u32> = state
+        .uv
+        .par_iter()
+        .enumerate()
+        .map(|(v, &[x, y])| {
+            if !no_full && sample.is_candidate(x.into(), y.into(), radius) {
+                return 0;
+            }
+            let mut rng = ChaCha8Rng::seed_from_u64(form.seed ^ (v as u64).wrapping_mul(VERTEX_SEED));
+            let [x, y] = super::start::random_texel(sample, radius, &mut rng);
+            y as u32 * sample.width as u32 + x as u32
+        })
+        .collect();
+    let vertices = state.uv.len();
+    let table = match form.choosy {
+        Some(strength) => choosy_factors(vertices, sample, radius, strength),
+        None => vec![1.0; vertices + 1],
+    };
+    draws.into_iter().chain(table.iter().map(|f| f.to_bits())).collect()
+}
+
+/// Puts the pass's read-back `words` (the packed state, then four outputs per vertex) into
+/// `state`; its statistics, summed in the CPU's order: sub-pass by sub-pass, vertex by
+/// vertex.
+fn take_choices(vertices: usize, words: &[u32], form: &Form, state: &mut State) -> PassStats {
+    let (packed, outs) = words.split_at(2 * vertices);
+    for (v, w) in packed.chunks_exact(2).enumerate() {
+        state.uv[v] = [(w[0] & 0xffff) as i32, (w[0] >> 16) as i32];
+        state.labels[v] = w[1] as u16;
+    }
+    let (mut figure, mut compared) = (0.0f64, 0usize);
+    for &v in form.colouring.classes.iter().flatten() {
+        figure += f32::from_bits(outs[4 * v as usize]) as f64;
+        compared += outs[4 * v as usize + 1] as usize;
+    }
+    let n = vertices.max(1) as f64;
+    PassStats { mean_best: figure / n, mean_candidates: compared as f64 / n }
+}
+
+/// The bind group of `buffers`, in `synth_pass.wgsl`'s binding order (the parameters and
+/// the batch starts bound one slot wide, at dynamic offsets).
+fn bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[wgpu::Buffer; 9],
+) -> wgpu::BindGroup {
+    let slot = |binding: u32, size: u64| wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: &buffers[binding as usize],
+            offset: 0,
+            size: wgpu::BufferSize::new(size),
+        }),
+    };
+    let mut entries: Vec<wgpu::BindGroupEntry> = (1..8)
+        .map(|binding| wgpu::BindGroupEntry {
+            binding,
+            resource: buffers[binding as usize].as_entire_binding(),
+        })
+        .collect();
+    entries.insert(0, slot(0, std::mem::size_of::<Params>() as u64));
+    entries.push(slot(8, 16));
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("synth pass"),
+        layout,
+        entries: &entries,
+    })
 }
 
 /// Per vertex: x | y << 16, then the label.
