@@ -14,7 +14,7 @@ use crate::common;
 use btfsynth::progress::Silent;
 use btfsynth::synth::neighbourhood::{OwnPixels, ParentTemplate, SquareMetric, SquareTemplate};
 use btfsynth::synth::plane::{synthesize_plane, PlaneResult};
-use btfsynth::synth::{Candidates, Device, Neighbourhood, Preset, Sample, Select, SynthParams};
+use btfsynth::synth::{Candidates, Device, Neighbourhood, Preset, Sample, Select, Start, SynthParams};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -94,7 +94,8 @@ fn the_gpu_gives_the_cpus_coordinates_for_every_preset_with_a_gpu_form() {
 }
 
 /// The shader's other branches: colour SSD, the coarser level's own template as the parent
-/// (Turk's F(n, 1)), argmin selection, no coherence bias, and a full search.
+/// (Turk's F(n, 1)), argmin selection, no coherence bias, and a full search; and a jittered
+/// start on the finer level (the GPU starts from whatever state the CPU's start left).
 #[test]
 fn the_gpu_gives_the_cpus_coordinates_on_a_recipe_of_its_other_branches() {
     const TEST: &str = "the_gpu_gives_the_cpus_coordinates_on_a_recipe_of_its_other_branches";
@@ -123,6 +124,7 @@ fn the_gpu_gives_the_cpus_coordinates_on_a_recipe_of_its_other_branches() {
         pass.coherence_bias = 0.0;
     }
     preset.coarsest.passes.truncate(2);
+    preset.finer.start = Start::Jittered { texels: 1.0 };
     preset.validate().unwrap();
     same_on_both(TEST, &sample, (40, 36), false, SynthParams { preset, seed: 1, ..SynthParams::default() });
 }
