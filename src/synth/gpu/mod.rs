@@ -6,9 +6,9 @@
 //! and ties, the random draw of a vertex without candidates computed on the CPU from the
 //! same seed), so a pass leaves the CPU's coordinates to the bit, and its statistics too.
 //!
-//! A sub-pass is a few dispatches over its vertices (in parts of at most [`CHUNK`]): one
-//! gathers each vertex's candidates, then each of a few scores a batch of them (Mesa's
-//! llvmpipe ends an invocation's loops after 65535 iterations in all, [`LOOP_BUDGET`]), one
+//! A sub-pass is a few dispatches over its vertices (in parts of at most `CHUNK` = 4096
+//! vertices): one gathers each vertex's candidates, then each of a few scores a batch of them (Mesa's
+//! llvmpipe ends an invocation's loops after 65535 iterations in all, `LOOP_BUDGET`), one
 //! lets each vertex take its winner, and one moves the choosy use counts. One pass is one
 //! command buffer: the state goes up before it and comes back after.
 //!
