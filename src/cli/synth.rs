@@ -12,7 +12,7 @@ use btfsynth::synth::session::{SearchChoice, SynthSessionBuilder};
 use btfsynth::synth::surface_map::{
     build_pyramid_cached, synthesize_surface, write_surface_ply, Density, MAX_VERTICES,
 };
-use btfsynth::synth::{LevelReport, MetricKind, Preset, Sample, SynthParams};
+use btfsynth::synth::{Device, LevelReport, MetricKind, Preset, Sample, SynthParams};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -22,6 +22,16 @@ enum SearchKind {
     Kcoherence,
     /// Every sample pixel (slow; for comparison, Tong Table 2).
     Full,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum DeviceKind {
+    /// A hardware GPU where the machine has one, else the CPU.
+    Auto,
+    /// The CPU.
+    Cpu,
+    /// A GPU through wgpu, software ones (Mesa's lavapipe, llvmpipe) included.
+    Gpu,
 }
 
 #[derive(clap::Args)]
@@ -106,6 +116,14 @@ pub struct SynthArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Where the passes run: auto (a hardware GPU where there is one; software adapters
+    /// such as lavapipe are slower than the CPU and not used), cpu, or gpu (any wgpu
+    /// adapter; an error where there is none; WGPU_BACKEND=vulkan|gl picks the backend).
+    /// The result is the same byte for byte. Passes without a GPU form (all but the
+    /// interleaved square-template passes of appearance and tong2002 on a plane) run on the
+    /// CPU; the log and --report say per level which ran where.
+    #[arg(long, value_enum, default_value_t = DeviceKind::Auto)]
+    device: DeviceKind,
     /// Also write timings, candidate-set sizes and mean best distances per level here.
     #[arg(long, value_name = "FILE.json")]
     report: Option<PathBuf>,
@@ -145,11 +163,13 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
     }
 }
 
-/// Level reports as an output file records them: without wall-clock times, so that the
-/// same seed gives the same bytes (the times go to `--report`; serialized as null).
+/// Level reports as an output file records them: without wall-clock times or the device,
+/// so that the same seed gives the same bytes (both go to `--report`; times serialized as
+/// null).
 pub(super) fn untimed(reports: &mut [LevelReport]) {
     for r in reports {
         r.seconds = f64::NAN;
+        r.device = None;
     }
 }
 
@@ -204,7 +224,13 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         None => Preset::by_name(&args.preset).map_err(usage_of)?,
     };
     let mut session =
-        SynthSessionBuilder::new().preset(preset).neighbourhood(args.neighborhood).seed(args.seed);
+        SynthSessionBuilder::new().preset(preset).neighbourhood(args.neighborhood).seed(args.seed).device(
+            match args.device {
+                DeviceKind::Auto => Device::Auto,
+                DeviceKind::Cpu => Device::Cpu,
+                DeviceKind::Gpu => Device::Gpu,
+            },
+        );
     session = session.search(match args.search {
         SearchKind::Kcoherence => SearchChoice::KCoherence,
         SearchKind::Full => SearchChoice::Full,
@@ -413,8 +439,9 @@ fn check_vertices(vertices: usize, flag: &str, levels: usize, neighborhood: usiz
 
 fn print_reports(reports: &[LevelReport]) {
     for r in reports {
+        let on = r.device.as_deref().map(|d| format!(", on {d}")).unwrap_or_default();
         eprintln!(
-            "  level {}: {} vertices, {:.2} s, {:.1} candidates, mean best distance {:.4}",
+            "  level {}: {} vertices, {:.2} s, {:.1} candidates, mean best distance {:.4}{on}",
             r.level, r.vertices, r.seconds, r.mean_candidates, r.mean_best_distance
         );
     }

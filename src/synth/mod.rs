@@ -11,10 +11,14 @@
 pub mod adaptive;
 pub mod candidates;
 pub mod constrained;
+pub mod device;
 pub mod engine;
 pub(crate) mod flatten;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod isotropic;
 pub mod isotropic_stencil;
+pub(crate) mod job;
 pub mod kdtrees;
 pub mod metric;
 pub mod neighbourhood;
@@ -37,6 +41,7 @@ pub mod sweep;
 pub mod target;
 
 pub use candidates::Search;
+pub use device::Device;
 pub use engine::{Select, State, VisitOrder};
 pub use neighbourhood::{
     Compared, Mask, MetricKind, Neighbourhood, OwnPixels, ParentNeighbourhood, ParentTemplate, PointMetric,
@@ -72,6 +77,8 @@ pub struct SynthParams {
     pub neighborhood: usize,
     /// Seed of every random choice (default 0).
     pub seed: u64,
+    /// Where the passes run (default [`Device::Auto`]); the result is the same on either.
+    pub device: Device,
 }
 
 impl Default for SynthParams {
@@ -81,6 +88,7 @@ impl Default for SynthParams {
             search: Search::KCoherence { k: 11 },
             neighborhood: 7,
             seed: 0,
+            device: Device::Auto,
         }
     }
 }
@@ -100,6 +108,10 @@ pub struct LevelReport {
     pub mean_candidates: f64,
     /// Mean best neighbourhood distance of the last pass.
     pub mean_best_distance: f64,
+    /// Where the level's passes ran: "cpu", "gpu (adapter)", or both with the reason the
+    /// others had no GPU form ([`device`]). Left out of outputs, which do not depend on it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
 }
 
 /// Synthesizes every level of `targets` (finest first, as many as `sample` has levels in
@@ -135,6 +147,7 @@ pub fn synthesize(
     progress.start("synthesizing", preset.pass_count(targets.len()) as u64);
     let r = params.neighborhood / 2;
     let mut reports = Vec::new();
+    let mut runner = device::Runner::open(params.device, device::may_use_gpu(targets, preset))?;
     let mut state: Option<State> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;
@@ -212,11 +225,27 @@ pub fn synthesize(
                 rounds: rounds.as_ref(),
                 iso: iso.as_ref(),
             };
-            stats = run_pass(p, &level, &mut current, params, &schedule, &mut rng)?;
+            let job = job::PassJob {
+                pass: p,
+                search: capped(pass_search(p, params.search), level_sample),
+                level: l,
+                target,
+                coarser: targets.get(l + 1),
+                sample: level_sample,
+                coarse_sample: levels.get(l + 1),
+                coarse: coarse.as_ref(),
+                schedule: &schedule,
+            };
+            stats = match runner.pass(&job, &mut current)? {
+                Some(stats) => stats,
+                None => run_pass(p, &level, &mut current, params, &schedule, &mut rng)?,
+            };
             progress.advance(1);
         }
         let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
-        reports.push(report(l, target, passes, started.elapsed(), stats));
+        let mut level_report = report(l, target, passes, started.elapsed(), stats);
+        level_report.device = Some(runner.level_done());
+        reports.push(level_report);
         state = Some(current);
         drop(iso);
         coarse_turns = turns;
@@ -434,5 +463,6 @@ fn report(
         seconds: elapsed.as_secs_f64(),
         mean_candidates: stats.mean_candidates,
         mean_best_distance: stats.mean_best,
+        device: None,
     }
 }

@@ -206,7 +206,7 @@ pub fn run_scheduled_pass<V: VertexMatch>(
 }
 
 /// Spreads vertex indices over the seed space (the 64-bit golden ratio).
-const VERTEX_SEED: u64 = 0x9E37_79B9_7F4A_7C15;
+pub(crate) const VERTEX_SEED: u64 = 0x9E37_79B9_7F4A_7C15;
 
 /// What every vertex of one pass shares.
 struct PassInputs<'a> {

@@ -26,7 +26,7 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
-use super::{Preset, Search, SynthParams};
+use super::{Device, Preset, Search, SynthParams};
 use crate::analysis::store::Manifest;
 use crate::error::{Param, Remedy};
 use crate::{Error, Result};
@@ -50,6 +50,7 @@ pub struct SynthSessionBuilder {
     levels: Option<usize>,
     neighbourhood: usize,
     seed: u64,
+    device: Device,
 }
 
 impl Default for SynthSessionBuilder {
@@ -62,6 +63,7 @@ impl Default for SynthSessionBuilder {
             levels: None,
             neighbourhood: defaults.neighborhood,
             seed: defaults.seed,
+            device: defaults.device,
         }
     }
 }
@@ -110,6 +112,14 @@ impl SynthSessionBuilder {
         self
     }
 
+    /// Where the passes run: [`Device::Auto`] (default) uses a hardware GPU where there is
+    /// one, [`Device::Gpu`] any GPU (failing where wgpu finds none), [`Device::Cpu`] the
+    /// CPU. The result is the same on either; only the time differs.
+    pub fn device(mut self, device: Device) -> Self {
+        self.device = device;
+        self
+    }
+
     /// Checks every choice against the analysis described by `manifest` and the preset:
     /// the levels exist, `k` is within the analysis' lists, the coarsest level in use holds
     /// a whole neighbourhood, and the preset can run the search.
@@ -131,8 +141,13 @@ impl SynthSessionBuilder {
             SearchChoice::Full => Search::Full,
         };
         self.preset.check_search(search)?;
-        let params =
-            SynthParams { preset: self.preset, search, neighborhood: self.neighbourhood, seed: self.seed };
+        let params = SynthParams {
+            preset: self.preset,
+            search,
+            neighborhood: self.neighbourhood,
+            seed: self.seed,
+            device: self.device,
+        };
         Ok(SynthSession { params, choice: self.search, k, levels })
     }
 }

@@ -19,6 +19,7 @@ mod docs;
 mod export;
 mod factor_analysis;
 mod gen;
+mod gpu_synth;
 mod interrupt;
 mod isotropic;
 mod loaders;
