@@ -62,8 +62,9 @@ pub struct SolerArgs {
     /// Do not relax texture coordinates along patch borders after each fit.
     #[arg(long)]
     no_relax: bool,
-    /// Keep patch borders where the cluster hierarchy put them, instead of moving border
-    /// faces, once every face is mapped, to the neighbouring patch they continue better.
+    /// Keep patch borders where the cluster hierarchy put them, instead of cutting each
+    /// border, once every face is mapped, where the two patches' textures differ least and
+    /// moving border faces to the neighbouring patch they continue better.
     #[arg(long)]
     keep_borders: bool,
     /// The face (0-based, in the file's order) the first patch holds: the mapping grows

@@ -11,6 +11,7 @@
 //! every side is a seam, is taken over by the neighbour it continues best.
 
 use super::chart::unfold;
+use super::fit::FitImage;
 use super::graph::NONE;
 use super::mapper::{Mapper, Mapping};
 use glam::Vec2;
@@ -65,7 +66,6 @@ pub(super) fn move_borders(m: &Mapper, mapping: &mut Mapping) -> usize {
 fn jump(m: &Mapper, mapping: &Mapping, f: u32, uv: &[Vec2; 3]) -> f32 {
     let (graph, image) = (m.graph, &m.fitter.image);
     let t = graph.corners[f as usize];
-    let (mut mine, mut theirs) = (vec![0f32; image.channels], vec![0f32; image.channels]);
     let mut total = 0.0;
     for k in 0..3 {
         let g = graph.across[f as usize][k];
@@ -75,16 +75,25 @@ fn jump(m: &Mapper, mapping: &Mapping, f: u32, uv: &[Vec2; 3]) -> f32 {
         let (a, b) = (t[k], t[(k + 1) % 3]);
         let (Some(ga), Some(gb)) = (graph.corner_of(g, a), graph.corner_of(g, b)) else { continue };
         let other = mapping.face_uv[g as usize];
-        let (ua, ub, ta, tb) = (uv[k], uv[(k + 1) % 3], other[ga], other[gb]);
-        let steps = (ua.distance(ub).max(ta.distance(tb)).ceil() as usize).clamp(1, 64);
-        for i in 0..=steps {
-            let s = i as f32 / steps as f32;
-            image.sample(ua.lerp(ub, s), &mut mine);
-            image.sample(ta.lerp(tb, s), &mut theirs);
-            total += mine.iter().zip(&theirs).map(|(x, y)| (x - y) * (x - y)).sum::<f32>()
-                / (steps + 1) as f32
-                * ua.distance(ub).max(1.0);
-        }
+        total += edge_jump(image, (uv[k], uv[(k + 1) % 3]), (other[ga], other[gb]));
+    }
+    total
+}
+
+/// The squared difference (fitting space) between two textures along one edge, given by
+/// its two ends' coordinates in each (`mine` and `theirs`, in the same order), summed at
+/// about one point per texel of its length.
+pub(super) fn edge_jump(image: &FitImage, mine: (Vec2, Vec2), theirs: (Vec2, Vec2)) -> f32 {
+    let ((ua, ub), (ta, tb)) = (mine, theirs);
+    let (mut here, mut there) = (vec![0f32; image.channels], vec![0f32; image.channels]);
+    let steps = (ua.distance(ub).max(ta.distance(tb)).ceil() as usize).clamp(1, 64);
+    let mut total = 0.0;
+    for i in 0..=steps {
+        let s = i as f32 / steps as f32;
+        image.sample(ua.lerp(ub, s), &mut here);
+        image.sample(ta.lerp(tb, s), &mut there);
+        total += here.iter().zip(&there).map(|(x, y)| (x - y) * (x - y)).sum::<f32>() / (steps + 1) as f32
+            * ua.distance(ub).max(1.0);
     }
     total
 }

@@ -116,6 +116,7 @@ impl Mapper<'_> {
             eligible = self.drain(&eligible, &mut round, rng, progress)?;
         }
         if self.params.matching && self.params.move_borders {
+            super::cut::cut_borders(self, &mut mapping);
             super::borders::move_borders(self, &mut mapping);
         }
         for (report, errors) in reports.iter_mut().zip(&mut errors) {

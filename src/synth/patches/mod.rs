@@ -11,8 +11,10 @@
 //!   finished by a near-isometric flattening of each cluster's faces (`arap`).
 //! - [`fit`]: mask fitting by FFT correlation over rotations of the sample (§4.2).
 //! - [`mapping`]: the coarse-to-fine priority queue (§2.2) and the masks (§4.1);
-//!   [`relax`]: the relaxation along borders (§4.4); `borders`: once every face is mapped,
-//!   border faces moved to the neighbouring patch whose texture they continue better.
+//!   [`relax`]: the relaxation along borders (§4.4); once every face is mapped, `cut`: the
+//!   minimum-error cut through a band of faces along each border between two patches, and
+//!   `borders`: border faces moved to the neighbouring patch whose texture they continue
+//!   better.
 //! - [`output`]: the result as a PLY (or OBJ) with per-corner texture coordinates, and
 //!   reading it back for `render` and `export`.
 //!
@@ -35,6 +37,7 @@
 mod arap;
 mod borders;
 pub mod chart;
+mod cut;
 pub mod fit;
 pub mod graph;
 pub mod hierarchy;
@@ -78,9 +81,11 @@ pub struct SolerParams {
     pub colour: ColourSpace,
     /// Relax the coordinates along textured borders after each fit (§4.4; default on).
     pub relax: bool,
-    /// Once every face is mapped, move border faces to the patch across an edge wherever
-    /// its texture, continued over them, lowers the jump along their edges
-    /// (default on). Borders then run where the patches' textures agree.
+    /// Once every face is mapped, cut each pair of neighbouring patches where their
+    /// textures, continued over a band of faces either side of their border, differ least,
+    /// then move single border faces to the patch across an edge wherever its texture,
+    /// continued over them, lowers the jump along their edges (default on). Borders then
+    /// run where the patches' textures agree.
     pub move_borders: bool,
     /// Match each patch to its neighbours (default on). Off, every patch is placed at
     /// random where it fits: the baseline that measures what matching buys.
