@@ -398,14 +398,48 @@ fn nearest(points: &Points, centres: &Points) -> Assignment {
             let dots = points.block(start, labels.len()).dot(&transposed);
             for (i, (label, distance)) in labels.iter_mut().zip(distances).enumerate() {
                 let row = dots.row(i);
-                let score = |j: usize| norms[j] - 2.0 * row[j];
-                let best = (1..centres.n).fold(0, |best, j| if score(j) < score(best) { j } else { best });
+                let best = lowest_score(&norms, row.as_slice().expect("a GEMM result row is contiguous"));
                 *label = best;
                 *distance = squared_distance(points.row(start + i), centres.row(best));
             }
         },
     );
     Assignment { labels, distances }
+}
+
+/// The index of the smallest `norms[j] − 2 dots[j]`, the lowest index among equal scores.
+///
+/// Eight lanes each keep their own best (strictly smaller replaces, so a lane keeps its
+/// lowest index among ties), then the lanes are merged by score and index: the same index a
+/// sequential scan would return, whatever the order of the comparisons, since every score is
+/// computed the same way and the scores are finite. The lanes let the compiler vectorise
+/// what is, at the textons' few dimensions, as much work as the distance product itself.
+fn lowest_score(norms: &[f32], dots: &[f32]) -> usize {
+    const LANES: usize = 8;
+    let mut best_score = [f32::INFINITY; LANES];
+    let mut best_index = [usize::MAX; LANES];
+    let full = norms.len() / LANES * LANES;
+    for start in (0..full).step_by(LANES) {
+        for l in 0..LANES {
+            let score = norms[start + l] - 2.0 * dots[start + l];
+            if score < best_score[l] {
+                (best_score[l], best_index[l]) = (score, start + l);
+            }
+        }
+    }
+    let mut best = (f32::INFINITY, usize::MAX);
+    let tail = (full..norms.len()).map(|j| (norms[j] - 2.0 * dots[j], j));
+    for (score, index) in best_score.into_iter().zip(best_index).chain(tail) {
+        if score < best.0 || (score == best.0 && index < best.1) {
+            best = (score, index);
+        }
+    }
+    // Scores of +∞ (overflowing norms) never beat the initial +∞: fall back to the first.
+    if best.1 == usize::MAX {
+        0
+    } else {
+        best.1
+    }
 }
 
 /// Gives each empty cluster the point farthest from its centre (ties: lowest index), so
@@ -529,6 +563,19 @@ mod tests {
         assert!((ours.inertia - inertia_of(&data, &ours.centres)).abs() < 1e-6 * ours.inertia);
         let ratio = ours.inertia / linfa_inertia;
         assert!((ratio - 1.0).abs() < 0.02, "ours {} linfa {linfa_inertia}", ours.inertia);
+    }
+
+    #[test]
+    fn the_lanes_pick_the_scan_s_centre_ties_included() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for k in [1, 7, 8, 9, 25, 100, 403] {
+            // Values on a coarse grid, so equal scores are common.
+            let mut grid = |n: usize| (0..n).map(|_| rng.random_range(0..6) as f32).collect::<Vec<_>>();
+            let (norms, dots) = (grid(k), grid(k));
+            let score = |j: usize| norms[j] - 2.0 * dots[j];
+            let scan = (1..k).fold(0, |best, j| if score(j) < score(best) { j } else { best });
+            assert_eq!(lowest_score(&norms, &dots), scan, "k = {k}");
+        }
     }
 
     #[test]
