@@ -154,7 +154,7 @@ fn continued(m: &Mapper, mapping: &Mapping, f: u32, p: u32) -> Option<[Vec2; 3]>
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::chart::Flattening;
     use super::super::fit::{FitImage, Fitter};
     use super::super::graph::{tests::grid, SurfaceGraph};
@@ -165,36 +165,60 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use std::path::Path;
 
+    /// A unit plane of `n`² squares over a 64² noise sample, at 40 texels per unit: noise,
+    /// so that the texture shifted agrees with the original nowhere, and a misplaced face
+    /// or strip has exactly one right place. The border moves and cuts are tested on it.
+    pub struct NoisePlane {
+        pub graph: SurfaceGraph,
+        hierarchy: Hierarchy,
+        flattening: Flattening,
+        fitter: Fitter,
+        params: SolerParams,
+    }
+
+    impl NoisePlane {
+        pub fn new(n: u32) -> Self {
+            let (p, t) = grid(n);
+            let graph = SurfaceGraph::new(&p, &t, Path::new("grid")).unwrap();
+            let hierarchy = Hierarchy::build(&graph, &mut ChaCha8Rng::seed_from_u64(1));
+            let flattening = Flattening::new(&graph, &hierarchy);
+            let side = 64;
+            let values: Vec<f32> = (0..side * side * 3)
+                .map(|i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 16) as f32 / 65_536.0)
+                .collect();
+            let fitter = Fitter::new(FitImage::new(side, side, 3, values, false).unwrap(), 4).unwrap();
+            let params = SolerParams { texels_per_unit: 40.0, ..SolerParams::default() };
+            NoisePlane { graph, hierarchy, flattening, fitter, params }
+        }
+
+        pub fn mapper(&self) -> Mapper<'_> {
+            Mapper {
+                graph: &self.graph,
+                hierarchy: &self.hierarchy,
+                flattening: &self.flattening,
+                fitter: &self.fitter,
+                params: &self.params,
+                first_face: None,
+            }
+        }
+
+        /// The rigid map's texel of vertex `v`: chart texels mirrored to image rows, as the
+        /// mapping writes them.
+        pub fn texel(&self, v: u32) -> Vec2 {
+            let q = self.graph.positions[v as usize];
+            Vec2::new(10.0 + 40.0 * q.x, 50.0 - 40.0 * q.y)
+        }
+    }
+
     /// A plane textured by one rigid map but labelled as two patches (left and right
     /// halves), with one face of the left half given the same texture shifted, as a patch
     /// of its own: that face alone moves, back onto the map its neighbours continue, and
     /// the seamless border between the halves stays where it is.
     #[test]
     fn a_misplaced_face_takes_the_texture_its_neighbours_continue() {
-        let (p, t) = grid(4);
-        let graph = SurfaceGraph::new(&p, &t, Path::new("grid")).unwrap();
-        let h = Hierarchy::build(&graph, &mut ChaCha8Rng::seed_from_u64(1));
-        let flattening = Flattening::new(&graph, &h);
-        let side = 64;
-        // Noise: the texture shifted agrees with the original nowhere.
-        let values: Vec<f32> = (0..side * side * 3)
-            .map(|i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 16) as f32 / 65_536.0)
-            .collect();
-        let fitter = Fitter::new(FitImage::new(side, side, 3, values, false).unwrap(), 4).unwrap();
-        let params = SolerParams { texels_per_unit: 40.0, ..SolerParams::default() };
-        let m = Mapper {
-            graph: &graph,
-            hierarchy: &h,
-            flattening: &flattening,
-            fitter: &fitter,
-            params: &params,
-            first_face: None,
-        };
-        // Chart texels mirrored to image rows, as the mapping writes them.
-        let map = |v: u32| {
-            let q = graph.positions[v as usize];
-            Vec2::new(10.0 + 40.0 * q.x, 50.0 - 40.0 * q.y)
-        };
+        let plane = NoisePlane::new(4);
+        let (graph, m) = (&plane.graph, plane.mapper());
+        let map = |v: u32| plane.texel(v);
         let mut mapping = Mapping::new(graph.face_count());
         for f in 0..graph.face_count() {
             let centre: f32 = graph.corners[f].iter().map(|&v| graph.positions[v as usize].x).sum::<f32>();

@@ -342,15 +342,8 @@ impl Network {
 
 #[cfg(test)]
 mod tests {
-    use super::super::chart::Flattening;
-    use super::super::fit::{FitImage, Fitter};
-    use super::super::graph::{tests::grid, SurfaceGraph};
-    use super::super::hierarchy::Hierarchy;
-    use super::super::SolerParams;
+    use super::super::borders::tests::NoisePlane;
     use super::*;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
-    use std::path::Path;
 
     /// A plane in three strips: the outer two carry one rigid map, the middle one the same
     /// texture shifted (noise, so the shift agrees with it nowhere), as a patch of its own
@@ -360,29 +353,9 @@ mod tests {
     /// is left. (Moving single faces needs a face whose move alone lowers the jump.)
     #[test]
     fn a_misplaced_strip_is_cut_away_whole() {
-        let (p, t) = grid(8);
-        let graph = SurfaceGraph::new(&p, &t, Path::new("grid")).unwrap();
-        let h = Hierarchy::build(&graph, &mut ChaCha8Rng::seed_from_u64(1));
-        let flattening = Flattening::new(&graph, &h);
-        let side = 64;
-        let values: Vec<f32> = (0..side * side * 3)
-            .map(|i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 16) as f32 / 65_536.0)
-            .collect();
-        let fitter = Fitter::new(FitImage::new(side, side, 3, values, false).unwrap(), 4).unwrap();
-        let params = SolerParams { texels_per_unit: 40.0, ..SolerParams::default() };
-        let m = Mapper {
-            graph: &graph,
-            hierarchy: &h,
-            flattening: &flattening,
-            fitter: &fitter,
-            params: &params,
-            first_face: None,
-        };
-        // Chart texels mirrored to image rows, as the mapping writes them.
-        let map = |v: u32| {
-            let q = graph.positions[v as usize];
-            Vec2::new(10.0 + 40.0 * q.x, 50.0 - 40.0 * q.y)
-        };
+        let plane = NoisePlane::new(8);
+        let (graph, m) = (&plane.graph, plane.mapper());
+        let map = |v: u32| plane.texel(v);
         let strip = |f: usize| {
             let x = graph.corners[f].iter().map(|&v| graph.positions[v as usize].x).sum::<f32>() / 3.0;
             u32::from(x > 0.375) + u32::from(x > 0.625)
