@@ -417,7 +417,9 @@ fn nearest(points: &Points, centres: &Points) -> Assignment {
 fn lowest_score(norms: &[f32], dots: &[f32]) -> usize {
     const LANES: usize = 8;
     let mut best_score = [f32::INFINITY; LANES];
-    let mut best_index = [usize::MAX; LANES];
+    // Each lane starts on its first index, so that where every score is +∞ (overflowing
+    // norms) the lowest index wins, as in the scan.
+    let mut best_index: [usize; LANES] = std::array::from_fn(|l| l);
     let full = norms.len() / LANES * LANES;
     for start in (0..full).step_by(LANES) {
         for l in 0..LANES {
@@ -427,19 +429,14 @@ fn lowest_score(norms: &[f32], dots: &[f32]) -> usize {
             }
         }
     }
-    let mut best = (f32::INFINITY, usize::MAX);
+    let mut best = (f32::INFINITY, 0);
     let tail = (full..norms.len()).map(|j| (norms[j] - 2.0 * dots[j], j));
     for (score, index) in best_score.into_iter().zip(best_index).chain(tail) {
         if score < best.0 || (score == best.0 && index < best.1) {
             best = (score, index);
         }
     }
-    // Scores of +∞ (overflowing norms) never beat the initial +∞: fall back to the first.
-    if best.1 == usize::MAX {
-        0
-    } else {
-        best.1
-    }
+    best.1
 }
 
 /// Gives each empty cluster the point farthest from its centre (ties: lowest index), so
@@ -571,7 +568,10 @@ mod tests {
         for k in [1, 7, 8, 9, 25, 100, 403] {
             // Values on a coarse grid, so equal scores are common.
             let mut grid = |n: usize| (0..n).map(|_| rng.random_range(0..6) as f32).collect::<Vec<_>>();
-            let (norms, dots) = (grid(k), grid(k));
+            let (mut norms, dots) = (grid(k), grid(k));
+            if k == 9 {
+                norms.fill(f32::INFINITY); // every score +∞: the first centre, as in the scan
+            }
             let score = |j: usize| norms[j] - 2.0 * dots[j];
             let scan = (1..k).fold(0, |best, j| if score(j) < score(best) { j } else { best });
             assert_eq!(lowest_score(&norms, &dots), scan, "k = {k}");
