@@ -133,7 +133,9 @@ mod tests {
         let halves = (-40..=40).map(|i| i as f32 * 0.5);
         let near_halves = (-40..=40).flat_map(|i| {
             let h = i as f32 * 0.5;
-            [h.next_down(), h.next_up()]
+            // The floats next to h in its bit pattern (a NaN and the least subnormal for 0).
+            let bits = h.to_bits();
+            [f32::from_bits(bits.wrapping_sub(1)), f32::from_bits(bits.wrapping_add(1))]
         });
         let wide: Vec<f32> = (0..10_000).map(|_| rng.random_range(-3.0e9f32..3.0e9)).collect();
         let narrow: Vec<f32> = (0..10_000).map(|_| rng.random_range(-600.0f32..600.0)).collect();

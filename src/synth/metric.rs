@@ -237,9 +237,10 @@ fn push_vector(values: &mut Vec<f32>, vector: &[f32]) {
 #[inline]
 fn ssd_within<const D: usize>(values: &[f32], base: isize, query: &Vectors, bound: f32) -> f32 {
     let mut d = 0.0;
-    for (&offset, target) in query.offsets.iter().zip(query.values.as_chunks::<D>().0) {
+    for (&offset, target) in query.offsets.iter().zip(query.values.chunks_exact(D)) {
         let o = (base + offset) as usize;
         let vector: &[f32; D] = values[o..o + D].try_into().expect("a slice of D values");
+        let target: &[f32; D] = target.try_into().expect("a chunk of D values");
         d += vector.iter().zip(target).map(|(a, b)| (a - b) * (a - b)).sum::<f32>();
         if d > bound {
             break;
