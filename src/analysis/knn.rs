@@ -143,7 +143,7 @@ impl<'a> PyramidSearch<'a> {
                 let cands =
                     children_of_parent_candidates(map, parent, parent_lists, a, COARSE_CANDIDATES + 1);
                 let (single, two) =
-                    features.nearest_among_both(a, cands.into_iter(), k.saturating_sub(1), map, tileable);
+                    features.nearest_among_both(a, &cands, k.saturating_sub(1), map, tileable);
                 (padded(a, &single, k), padded(a, &two, k))
             })
             .unzip();
@@ -194,7 +194,7 @@ impl<'a> PyramidSearch<'a> {
                     (Some(lists), Some(parent)) => {
                         let cands =
                             children_of_parent_candidates(map, parent, lists, a, COARSE_CANDIDATES + 1);
-                        features.nearest_among(a, cands.into_iter(), count, map, tileable)
+                        features.nearest_among(a, &cands, count, map, tileable)
                     }
                     _ => features.nearest_of_all(a, &every_pixel, distances, count, map, tileable),
                 };
@@ -316,22 +316,42 @@ impl Features {
     fn nearest_among(
         &self,
         a: usize,
-        candidates: impl Iterator<Item = u32>,
+        candidates: &[u32],
         count: usize,
         map: &TextonMap,
         tileable: bool,
     ) -> Vec<u32> {
         let rows = self.query_rows(a);
         let mut best = Best::new(count);
-        for b in candidates.filter(|&b| self.eligible[b as usize]) {
-            let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
-            if let Some(d) = distance_within(&rows, cand, best.bound()) {
-                if !adjacent(map, a, b as usize, tileable) {
+        let eligible: Vec<u32> = candidates.iter().copied().filter(|&b| self.eligible[b as usize]).collect();
+        for batch in eligible.chunks(LANES) {
+            let bound = best.bound();
+            let distances = self.batch_within(&rows, batch, |_| bound, |_| -0.0);
+            for (&b, d) in batch.iter().zip(distances) {
+                if let Some(d) = d.filter(|_| !adjacent(map, a, b as usize, tileable)) {
                     best.offer(Scored(d, b));
                 }
             }
         }
         best.into_sorted()
+    }
+
+    /// [`continue_within`] for up to [`LANES`] candidates at once, the bound and start of each
+    /// from `bound` and `start`: see [`sums_within`].
+    fn batch_within(
+        &self,
+        rows: &[(usize, &[f32])],
+        batch: &[u32],
+        bound: impl Fn(u32) -> f32,
+        start: impl Fn(u32) -> f32,
+    ) -> [Option<f32>; LANES] {
+        let mut cands = [&[][..]; LANES];
+        let (mut bounds, mut starts) = ([f32::NEG_INFINITY; LANES], [-0.0; LANES]);
+        for (lane, &b) in batch.iter().enumerate() {
+            cands[lane] = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
+            (bounds[lane], starts[lane]) = (bound(b), start(b));
+        }
+        sums_within(rows, cands, bounds, starts)
     }
 
     /// [`Self::nearest_among`] for the two-level neighbourhoods these features hold and, in
@@ -341,7 +361,7 @@ impl Features {
     fn nearest_among_both(
         &self,
         a: usize,
-        candidates: impl Iterator<Item = u32>,
+        candidates: &[u32],
         count: usize,
         map: &TextonMap,
         tileable: bool,
@@ -350,22 +370,24 @@ impl Features {
         let (fine_rows, parent_rows) = rows.split_at(rows.partition_point(|(slot, _)| *slot < self.fine_len));
         let (mut single, mut two) = (Best::new(count), Best::new(count));
         let bound = |eligible: bool, best: &Best| if eligible { best.bound() } else { f32::NEG_INFINITY };
-        for b in candidates {
-            let single_bound = bound(self.fine_eligible[b as usize], &single);
-            let two_bound = bound(self.eligible[b as usize], &two);
-            let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
-            let Some(fine) = continue_within(fine_rows, cand, single_bound.max(two_bound), -0.0) else {
-                continue;
+        for batch in candidates.chunks(LANES) {
+            let fine_bound = |b: u32| {
+                bound(self.fine_eligible[b as usize], &single).max(bound(self.eligible[b as usize], &two))
             };
-            if adjacent(map, a, b as usize, tileable) {
-                continue;
-            }
-            if fine <= single_bound {
-                single.offer(Scored(fine, b));
-            }
-            if fine <= two_bound {
-                if let Some(d) = continue_within(parent_rows, cand, two_bound, fine) {
-                    two.offer(Scored(d, b));
+            let fines = self.batch_within(fine_rows, batch, fine_bound, |_| -0.0);
+            for (&b, fine) in batch.iter().zip(fines) {
+                let Some(fine) = fine.filter(|_| !adjacent(map, a, b as usize, tileable)) else {
+                    continue;
+                };
+                if fine <= bound(self.fine_eligible[b as usize], &single) {
+                    single.offer(Scored(fine, b));
+                }
+                let two_bound = bound(self.eligible[b as usize], &two);
+                if fine <= two_bound {
+                    let cand = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
+                    if let Some(d) = continue_within(parent_rows, cand, two_bound, fine) {
+                        two.offer(Scored(d, b));
+                    }
                 }
             }
         }
@@ -376,7 +398,7 @@ impl Features {
     /// [`AllPixels`]): streaming a slot's values for every pixel costs a fraction of
     /// gathering each candidate's neighbourhood, which matters where the search is
     /// exhaustive over a coarsest level of 128² pixels. The terms are added in the order
-    /// [`distance_within`] adds them, so the lists are the same.
+    /// [`continue_within`] adds them, so the lists are the same.
     fn nearest_of_all(
         &self,
         a: usize,
@@ -560,15 +582,11 @@ impl Best {
 /// Table rows are checked against the bound once per this many slots (a 5×5 row).
 const PRUNE_EVERY: usize = 5;
 
-/// The distance of a candidate's neighbourhood to the query's `rows`, or `None` once it is
-/// past `bound`. Exact: every term is ≥ 0, so a partial sum never exceeds the whole, and the
-/// terms are added in slot order from −0.0, as `Iterator::sum` adds them, so the distances
-/// (and the lists' order of ties) are those of summing every slot.
-fn distance_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32) -> Option<f32> {
-    continue_within(rows, cand, bound, -0.0)
-}
-
-/// [`distance_within`] adding on to the partial sum `start` of the slots before `rows`.
+/// The distance of a candidate's neighbourhood to the query's `rows`, added on to the partial
+/// sum `start` of the slots before them (−0.0 for none), or `None` once it is past `bound`.
+/// Exact: every term is ≥ 0, so a partial sum never exceeds the whole, and the terms are
+/// added in slot order from −0.0, as `Iterator::sum` adds them, so the distances (and the
+/// lists' order of ties) are those of summing every slot.
 fn continue_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32, start: f32) -> Option<f32> {
     let mut d = start;
     for chunk in rows.chunks(PRUNE_EVERY) {
@@ -580,6 +598,44 @@ fn continue_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32, start: f3
         }
     }
     Some(d)
+}
+
+/// Candidates whose distances [`sums_within`] adds up side by side.
+const LANES: usize = 4;
+
+/// [`continue_within`] for several candidates at once (a lane with no labels is `None`):
+/// each lane's terms are added in the same order from its own start, so each distance is
+/// the same bits as alone, and a lane is `None` once past its own bound. Side by side
+/// because one candidate's sum is a chain of dependent additions that leaves the CPU
+/// waiting on each; the lanes' chains are independent. A batch's bounds are those before
+/// any of its candidates is offered, looser than one at a time would give; that prunes
+/// less but chooses the same, since a candidate past a looser bound could not enter, and
+/// the `count` best by (distance, index) do not depend on the order they are offered in.
+fn sums_within(
+    rows: &[(usize, &[f32])],
+    cands: [&[u32]; LANES],
+    bounds: [f32; LANES],
+    starts: [f32; LANES],
+) -> [Option<f32>; LANES] {
+    let mut sums = starts;
+    let mut alive = cands.map(|c| !c.is_empty());
+    let term = |cand: &[u32], slot: usize, row: &[f32]| {
+        cand.get(slot).and_then(|&l| row.get(l as usize)).copied().unwrap_or(0.0)
+    };
+    for chunk in rows.chunks(PRUNE_EVERY) {
+        for (slot, row) in chunk {
+            for lane in 0..LANES {
+                sums[lane] += term(cands[lane], *slot, row);
+            }
+        }
+        for lane in 0..LANES {
+            alive[lane] &= sums[lane] <= bounds[lane];
+        }
+        if !alive.contains(&true) {
+            break;
+        }
+    }
+    std::array::from_fn(|lane| alive[lane].then_some(sums[lane]))
 }
 
 /// A candidate's distance and index, ordered by distance, then index (the lists' order).
