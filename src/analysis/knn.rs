@@ -326,7 +326,7 @@ impl Features {
         let eligible: Vec<u32> = candidates.iter().copied().filter(|&b| self.eligible[b as usize]).collect();
         for batch in eligible.chunks(LANES) {
             let bound = best.bound();
-            let distances = self.batch_within(&rows, batch, |_| bound, |_| -0.0);
+            let distances = self.batch_within(&rows, batch, |_| bound);
             for (&b, d) in batch.iter().zip(distances) {
                 if let Some(d) = d.filter(|_| !adjacent(map, a, b as usize, tileable)) {
                     best.offer(Scored(d, b));
@@ -336,22 +336,21 @@ impl Features {
         best.into_sorted()
     }
 
-    /// [`continue_within`] for up to [`LANES`] candidates at once, the bound and start of each
-    /// from `bound` and `start`: see [`sums_within`].
+    /// The distances of up to [`LANES`] candidates from their first slot, each against the
+    /// bound `bound` gives it: see [`sums_within`].
     fn batch_within(
         &self,
         rows: &[(usize, &[f32])],
         batch: &[u32],
         bound: impl Fn(u32) -> f32,
-        start: impl Fn(u32) -> f32,
     ) -> [Option<f32>; LANES] {
         let mut cands = [&[][..]; LANES];
-        let (mut bounds, mut starts) = ([f32::NEG_INFINITY; LANES], [-0.0; LANES]);
+        let mut bounds = [f32::NEG_INFINITY; LANES];
         for (lane, &b) in batch.iter().enumerate() {
             cands[lane] = &self.labels[b as usize * self.len..(b as usize + 1) * self.len];
-            (bounds[lane], starts[lane]) = (bound(b), start(b));
+            bounds[lane] = bound(b);
         }
-        sums_within(rows, cands, bounds, starts)
+        sums_within(rows, cands, bounds)
     }
 
     /// [`Self::nearest_among`] for the two-level neighbourhoods these features hold and, in
@@ -374,7 +373,7 @@ impl Features {
             let fine_bound = |b: u32| {
                 bound(self.fine_eligible[b as usize], &single).max(bound(self.eligible[b as usize], &two))
             };
-            let fines = self.batch_within(fine_rows, batch, fine_bound, |_| -0.0);
+            let fines = self.batch_within(fine_rows, batch, fine_bound);
             for (&b, fine) in batch.iter().zip(fines) {
                 let Some(fine) = fine.filter(|_| !adjacent(map, a, b as usize, tileable)) else {
                     continue;
@@ -603,8 +602,8 @@ fn continue_within(rows: &[(usize, &[f32])], cand: &[u32], bound: f32, start: f3
 /// Candidates whose distances [`sums_within`] adds up side by side.
 const LANES: usize = 4;
 
-/// [`continue_within`] for several candidates at once (a lane with no labels is `None`):
-/// each lane's terms are added in the same order from its own start, so each distance is
+/// [`continue_within`] from −0.0 for several candidates at once (a lane with no labels is
+/// `None`): each lane's terms are added in the same order, so each distance is
 /// the same bits as alone, and a lane is `None` once past its own bound. Side by side
 /// because one candidate's sum is a chain of dependent additions that leaves the CPU
 /// waiting on each; the lanes' chains are independent. A batch's bounds are those before
@@ -615,9 +614,8 @@ fn sums_within(
     rows: &[(usize, &[f32])],
     cands: [&[u32]; LANES],
     bounds: [f32; LANES],
-    starts: [f32; LANES],
 ) -> [Option<f32>; LANES] {
-    let mut sums = starts;
+    let mut sums = [-0.0f32; LANES];
     let mut alive = cands.map(|c| !c.is_empty());
     let term = |cand: &[u32], slot: usize, row: &[f32]| {
         cand.get(slot).and_then(|&l| row.get(l as usize)).copied().unwrap_or(0.0)
