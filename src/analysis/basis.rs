@@ -7,6 +7,7 @@
 //! are reproduced exactly by r + 1 scaled blocks (see [`PrincipalImages::block_weights`]).
 //! Truncating to the components that hold 99.9% of the variance is the only approximation.
 
+use super::products::{accumulate_by_columns, accumulate_by_rows, rows_in_parallel};
 use crate::seeded::normal;
 use crate::{Error, Result};
 use ndarray::{s, Array1, Array2, ArrayView2, Axis};
@@ -118,6 +119,11 @@ pub trait RowSource: Sync {
     fn block(&self, start: usize, len: usize) -> Array2<f32>;
 }
 
+/// Images per rayon task in the streamed basis' products that split the images.
+const TASK_ROWS: usize = 64;
+/// Values per rayon task in the streamed basis' products that split the pixels.
+const TASK_PIXELS: usize = 1024;
+
 /// Rows per block of [`principal_images_streamed`] for rows of `cols` values: about 16 MB
 /// of values, and a multiple of the GEMM's depth block (matrixmultiply's 256 for f32), so
 /// that products summed over the rows add the same partial sums in the same order as one
@@ -157,7 +163,7 @@ fn streamed_in_blocks(
     for (start, len) in blocks() {
         let c = centred(start, len);
         total = c.iter().fold(total, |t, &v| t + (v as f64) * (v as f64));
-        y.slice_mut(s![start..start + len, ..]).assign(&c.dot(&omega));
+        y.slice_mut(s![start..start + len, ..]).assign(&rows_in_parallel(c.view(), omega.view(), TASK_ROWS));
     }
     if total <= 0.0 {
         return Ok(PrincipalImages {
@@ -174,19 +180,23 @@ fn streamed_in_blocks(
     for (start, len) in blocks() {
         let beta = if start == 0 { 0.0 } else { 1.0 };
         let part = first.slice(s![start..start + len, ..]);
-        ndarray::linalg::general_mat_mul(1.0, &centred(start, len).t(), &part, beta, &mut z);
+        accumulate_by_rows(centred(start, len).t(), part, beta, z.view_mut(), TASK_PIXELS);
     }
     drop(first);
     let mut y = Array2::<f32>::zeros((n, q));
     for (start, len) in blocks() {
-        y.slice_mut(s![start..start + len, ..]).assign(&centred(start, len).dot(&z));
+        y.slice_mut(s![start..start + len, ..]).assign(&rows_in_parallel(
+            centred(start, len).view(),
+            z.view(),
+            TASK_ROWS,
+        ));
     }
     let range = orthonormal_columns(y);
     let mut b = Array2::<f32>::zeros((q, p));
     for (start, len) in blocks() {
         let beta = if start == 0 { 0.0 } else { 1.0 };
         let part = range.slice(s![start..start + len, ..]);
-        ndarray::linalg::general_mat_mul(1.0, &part.t(), &centred(start, len), beta, &mut b);
+        accumulate_by_columns(part.t(), centred(start, len).view(), beta, b.view_mut(), TASK_PIXELS);
     }
     from_range(mean, total, Some(range), b, options)
 }

@@ -5,6 +5,7 @@
 //! - [`kmeans`](mod@kmeans): seeded, thread-count-independent k-means for textons and representative
 //!   images.
 //! - [`basis`]: principal images, so that only a few basis images need filtering.
+//! - [`products`]: matrix products split over rayon tasks with the bits of one product.
 //! - [`gamma`]: Γ, texton distances and the spectral embedding.
 //! - [`pyramid`]: Gaussian image pyramids.
 //! - [`knn`]: k-coherence candidate lists.
@@ -23,6 +24,7 @@ pub mod knn;
 pub mod memory;
 pub mod npy;
 pub mod pipeline;
+pub mod products;
 pub mod pyramid;
 pub mod reduce;
 pub mod select;

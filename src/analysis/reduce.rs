@@ -14,9 +14,9 @@
 //! levels (every analysis of a 64×64 sample, the pinned goldens among them) are clustered
 //! in full.
 
+use super::products::{columns_in_parallel, rows_in_parallel};
 use crate::seeded::normal;
-use ndarray::{concatenate, Array1, Array2, ArrayView2, Axis};
-use rayon::prelude::*;
+use ndarray::{Array1, Array2, ArrayView2, Axis};
 
 /// Feature matrices with more values than this (256 MiB of f32) are reduced first.
 pub const REDUCE_ABOVE: usize = 1 << 26;
@@ -46,13 +46,13 @@ pub fn reduce(features: ArrayView2<f32>, seed: u64) -> Reduced {
         .sum();
     // Y = (F − 1μᵀ) Ω, with the centring applied to the product: F Ω − 1 (μᵀ Ω).
     let omega = Array2::from_shape_fn((d, l), |(i, j)| normal(seed, i as i64, j as i64));
-    let mut y = rows_in_parallel(features, &omega);
+    let mut y = rows_in_parallel(features, omega.view(), PRODUCT_BLOCK);
     let shift = mean.dot(&omega);
     y -= &shift;
     let q = orthonormal(&y);
     drop(y);
     // B = Qᵀ (F − 1μᵀ) = Qᵀ F − (Qᵀ 1) μᵀ.
-    let mut b = columns_in_parallel(q.t().as_standard_layout().view(), features);
+    let mut b = columns_in_parallel(q.t().as_standard_layout().view(), features, PRODUCT_BLOCK);
     let ones = q.sum_axis(Axis(0));
     for (mut row, &o) in b.rows_mut().into_iter().zip(&ones) {
         row.scaled_add(-o, &mean);
@@ -79,31 +79,6 @@ pub fn reduce(features: ArrayView2<f32>, seed: u64) -> Reduced {
 
 /// Rows and columns of the products below, per rayon task.
 const PRODUCT_BLOCK: usize = 4096;
-
-/// `a · b` with `a`'s rows split over rayon tasks: a reduced level's features are far too
-/// many rows for one core, and each row of the product is its own, so the same bits.
-fn rows_in_parallel(a: ArrayView2<f32>, b: &Array2<f32>) -> Array2<f32> {
-    let blocks: Vec<Array2<f32>> = a
-        .axis_chunks_iter(Axis(0), PRODUCT_BLOCK)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|rows| rows.dot(b))
-        .collect();
-    let views: Vec<ArrayView2<f32>> = blocks.iter().map(|m| m.view()).collect();
-    concatenate(Axis(0), &views).expect("blocks of one product's rows")
-}
-
-/// `a · b` with `b`'s columns split over rayon tasks (each column of the product is its own).
-fn columns_in_parallel(a: ArrayView2<f32>, b: ArrayView2<f32>) -> Array2<f32> {
-    let blocks: Vec<Array2<f32>> = b
-        .axis_chunks_iter(Axis(1), PRODUCT_BLOCK)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|cols| a.dot(&cols))
-        .collect();
-    let views: Vec<ArrayView2<f32>> = blocks.iter().map(|m| m.view()).collect();
-    concatenate(Axis(1), &views).expect("blocks of one product's columns")
-}
 
 /// Orthonormal columns spanning those of `y` (n × l, n ≫ l): twice, Y V Λ^-½ with
 /// YᵀY = V Λ Vᵀ (Cholesky–QR by eigenvectors, repeated for orthogonality); columns of
