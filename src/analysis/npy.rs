@@ -60,8 +60,18 @@ pub struct NpyArray<T> {
 
 /// Encodes `data` with `shape` as `.npy` bytes.
 pub fn encode<T: Element>(shape: &[usize], data: &[T]) -> Result<Vec<u8>> {
-    if shape.iter().product::<usize>() != data.len() {
-        return Err(Error::invalid(format!("{} values do not fill an array of shape {shape:?}", data.len())));
+    let mut out = header::<T>(shape, data.len())?;
+    out.reserve(std::mem::size_of_val(data));
+    for &v in data {
+        v.put(&mut out);
+    }
+    Ok(out)
+}
+
+/// The `.npy` header of an array of `T` with `shape`, which `len` values must fill.
+fn header<T: Element>(shape: &[usize], len: usize) -> Result<Vec<u8>> {
+    if shape.iter().product::<usize>() != len {
+        return Err(Error::invalid(format!("{len} values do not fill an array of shape {shape:?}")));
     }
     let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
     let tuple = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
@@ -70,22 +80,29 @@ pub fn encode<T: Element>(shape: &[usize], data: &[T]) -> Result<Vec<u8>> {
     let unpadded = 10 + header.len() + 1;
     header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
     header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + std::mem::size_of_val(data));
+    let mut out = Vec::with_capacity(10 + header.len());
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
-    for &v in data {
-        v.put(&mut out);
-    }
     Ok(out)
 }
 
+/// Values encoded per write: a stack's images are hundreds of MB, never copied whole.
+const WRITE_CHUNK: usize = 1 << 16;
+
 /// Writes an array atomically.
 pub fn write<T: Element>(path: &Path, shape: &[usize], data: &[T]) -> Result<()> {
-    let bytes = encode(shape, data)?;
+    let header = header::<T>(shape, data.len())?;
     write_with_temp(path, |tmp| {
         let mut f = std::fs::File::create(tmp).map_err(|e| Error::io(path, e))?;
-        f.write_all(&bytes).map_err(|e| Error::io(path, e))
+        f.write_all(&header).map_err(|e| Error::io(path, e))?;
+        let mut bytes = Vec::with_capacity(WRITE_CHUNK * std::mem::size_of::<T>());
+        for chunk in data.chunks(WRITE_CHUNK) {
+            bytes.clear();
+            chunk.iter().for_each(|&v| v.put(&mut bytes));
+            f.write_all(&bytes).map_err(|e| Error::io(path, e))?;
+        }
+        Ok(())
     })
 }
 

@@ -266,13 +266,20 @@ fn write_sample(
     let staged = StagedDir::new(dir, overwrite)?;
     let out = staged.path();
     let (n, w, h) = stored.size();
-    let sample = match stored {
-        Stored::Images(btf) => {
-            npy::write(&out.join("images.npy"), &[n, h, w, 3], btf.pixels())?;
-            None
-        }
-        Stored::Factors(f) => Some(write_factors(out, f)?),
-    };
+    // Both read the whole sample, one after the other: one core each.
+    let (sample, print) = rayon::join(
+        || match stored {
+            Stored::Images(btf) => {
+                npy::write(&out.join("images.npy"), &[n, h, w, 3], btf.pixels()).map(|_| None)
+            }
+            Stored::Factors(f) => write_factors(out, f).map(Some),
+        },
+        || match stored {
+            Stored::Images(btf) => fingerprint(btf),
+            Stored::Factors(f) => factor_fingerprint(f),
+        },
+    );
+    let sample = sample?;
     let directions: Vec<f32> =
         stored.pairs().iter().flat_map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
     npy::write(&out.join("directions.npy"), &[n, 4], &directions)?;
@@ -281,10 +288,6 @@ fn write_sample(
         levels.push(write_level(out, l, level)?);
     }
     write_previews(out, analysis)?;
-    let print = match stored {
-        Stored::Images(btf) => fingerprint(btf),
-        Stored::Factors(f) => factor_fingerprint(f),
-    };
     let mut manifest = manifest(analysis, (n, w, h), print, source_path, crop, levels);
     manifest.maps = crate::maps::store_maps(out, maps)?;
     manifest.sample = sample;
