@@ -15,6 +15,7 @@
 //! by one task in a fixed order, and sums across blocks or points are taken sequentially in
 //! index order.
 
+use super::elkan::{Bounds, MOST_LOWER_BOUNDS};
 use crate::progress::Progress;
 use crate::{Error, Result};
 use ndarray::{Array2, ArrayView2, CowArray, Ix2};
@@ -206,7 +207,8 @@ pub fn assign(data: ArrayView2<'_, f32>, centres: ArrayView2<'_, f32>) -> Result
             centre_points.d, points.d
         )));
     }
-    Ok(nearest(&points, &centre_points))
+    let mut scoring = Scoring::around(&mean(&points), &points, centre_points.n, MOST_LOWER_BOUNDS);
+    Ok(nearest(&points, &centre_points, &vec![0; points.n], &mut scoring))
 }
 
 fn check_k(k: usize) -> Result<()> {
@@ -254,15 +256,6 @@ impl<'a> Points<'a> {
 
     fn row(&self, i: usize) -> &'a [f32] {
         &self.data[i * self.d..(i + 1) * self.d]
-    }
-
-    /// Rows `start..start + len` as a matrix.
-    fn block(&self, start: usize, len: usize) -> ArrayView2<'a, f32> {
-        matrix(&self.data[start * self.d..(start + len) * self.d], len, self.d)
-    }
-
-    fn all(&self) -> ArrayView2<'a, f32> {
-        self.block(0, self.n)
     }
 }
 
@@ -347,25 +340,43 @@ fn lloyd(
     options: &KMeansOptions,
     progress: &dyn Progress,
 ) -> Clustering {
-    let threshold = options.tolerance * total_variance(points);
+    let mut scoring = Scoring::around(&mean(points), points, seeds.nrows(), MOST_LOWER_BOUNDS);
+    iterate(points, seeds, options, progress, &mut scoring)
+}
+
+/// Lloyd's iterations from `seeds`, scored by `scoring`.
+fn iterate(
+    points: &Points,
+    seeds: Array2<f32>,
+    options: &KMeansOptions,
+    progress: &dyn Progress,
+    scoring: &mut Scoring,
+) -> Clustering {
+    let threshold = options.tolerance * total_variance(points, &scoring.mean);
     let mut centres = seeds;
+    let mut labels = vec![0; points.n];
     let (mut iterations, mut converged) = (0, false);
     progress.start("k-means", options.max_iterations as u64);
     while iterations < options.max_iterations {
-        let mut assignment = nearest(points, &centre_view(&centres));
-        reseed_empty(&mut assignment, centres.nrows());
+        let mut assignment = nearest(points, &centre_view(&centres), &labels, scoring);
+        for i in reseed_empty(&mut assignment, centres.nrows()) {
+            scoring.bounds.forget(i);
+        }
         let moved = means(points, &assignment.labels, &centres);
-        let shift = squared_shift(&centres, &moved);
+        let shifts = squared_shifts(&centres, &moved);
+        let distances_moved: Vec<f64> = shifts.iter().map(|&s| scoring.bounds.distance_above(s)).collect();
+        scoring.bounds.moved(&assignment.labels, &distances_moved);
+        labels = assignment.labels;
         centres = moved;
         iterations += 1;
         progress.advance(1);
-        if shift <= threshold {
+        if shifts.iter().map(|&s| s as f64).sum::<f64>() <= threshold {
             converged = true;
             break;
         }
     }
     progress.finish();
-    let assignment = nearest(points, &centre_view(&centres));
+    let assignment = nearest(points, &centre_view(&centres), &labels, scoring);
     Clustering {
         inertia: assignment.distances.iter().map(|&d| d as f64).sum(),
         labels: assignment.labels,
@@ -383,28 +394,118 @@ fn centre_view(centres: &Array2<f32>) -> Points<'_> {
     }
 }
 
-/// Nearest centre of every point: one `ROW_BLOCK × k` matrix product per block of points
-/// gives `x·c`; the winner's distance is then recomputed exactly, since
-/// `‖x‖² − 2x·c + ‖c‖²` loses precision to cancellation.
-fn nearest(points: &Points, centres: &Points) -> Assignment {
-    let origin = vec![0f32; centres.d];
-    let norms: Vec<f32> = (0..centres.n).map(|j| squared_distance(centres.row(j), &origin)).collect();
-    let transposed = centres.all().reversed_axes();
-    let mut labels = vec![0usize; points.n];
-    let mut distances = vec![0f32; points.n];
-    labels.par_chunks_mut(ROW_BLOCK).zip(distances.par_chunks_mut(ROW_BLOCK)).enumerate().for_each(
-        |(b, (labels, distances))| {
-            let start = b * ROW_BLOCK;
-            let dots = points.block(start, labels.len()).dot(&transposed);
-            for (i, (label, distance)) in labels.iter_mut().zip(distances).enumerate() {
-                let row = dots.row(i);
-                let best = lowest_score(&norms, row.as_slice().expect("a GEMM result row is contiguous"));
-                *label = best;
-                *distance = squared_distance(points.row(start + i), centres.row(best));
+/// Rows at least this long are scored about the data's mean and with [`Bounds`]: there a
+/// row of the distance product costs far more than the bounds' upkeep (a square root and a
+/// subtraction per centre), and at the texton features' thousands of dimensions most
+/// points settle within a few iterations. Shorter rows keep plain Lloyd, to the bit.
+const LONG_ROWS: usize = 1024;
+
+/// How [`nearest`] scores points against centres: about `origin` (the data's mean for long
+/// rows, so that the scores' rounding, which grows with the norms, stays small beside the
+/// distances, and [`Bounds`] settle more points; zero otherwise).
+struct Scoring {
+    mean: Vec<f64>,
+    origin: Vec<f32>,
+    bounds: Bounds,
+    /// Rows of the distance product computed so far.
+    evaluated: usize,
+}
+
+impl Scoring {
+    /// Scoring of `points` (whose mean is `mean`) against `k` centres, with at most `most`
+    /// lower bounds for long rows and none for short ones.
+    fn around(mean: &[f64], points: &Points, k: usize, most: usize) -> Scoring {
+        let long = points.d >= LONG_ROWS;
+        let origin: Vec<f32> = mean.iter().map(|&m| if long { m as f32 } else { 0.0 }).collect();
+        let norms = (0..points.n)
+            .into_par_iter()
+            .map(|i| {
+                points.row(i).iter().zip(&origin).map(|(&x, &o)| ((x - o) as f64).powi(2)).sum::<f64>().sqrt()
+            })
+            .collect();
+        let bounds = Bounds::new(norms, points.d, k, if long { most } else { 0 });
+        Scoring { mean: mean.to_vec(), bounds, origin, evaluated: 0 }
+    }
+
+    /// Whether the origin is zero: rows are then scored as they are.
+    fn at_zero(&self) -> bool {
+        self.origin.iter().all(|&o| o == 0.0)
+    }
+
+    /// The rows `indices` (increasing) about the origin, one after the other; borrowed
+    /// when they already are.
+    fn rows<'a>(&self, points: &Points<'a>, indices: &[usize]) -> std::borrow::Cow<'a, [f32]> {
+        match (indices.first(), indices.last()) {
+            (Some(&first), Some(&last)) if last - first + 1 == indices.len() && self.at_zero() => {
+                std::borrow::Cow::Borrowed(&points.data[first * points.d..(last + 1) * points.d])
             }
-        },
-    );
-    Assignment { labels, distances }
+            _ => {
+                let row = |i: usize| points.row(i).iter().zip(&self.origin).map(|(&x, &o)| x - o);
+                std::borrow::Cow::Owned(indices.iter().flat_map(|&i| row(i)).collect())
+            }
+        }
+    }
+}
+
+/// Nearest centre of every point, given each point's current centre in `labels` (updating
+/// the bounds of `scoring`). A point the bounds settle keeps its centre and has only that
+/// distance measured again. The others are gathered, in index order, into blocks of
+/// [`ROW_BLOCK`]; one `ROW_BLOCK × k` matrix product per block gives `x·c` about the
+/// origin, the lowest `‖c‖² − 2x·c` names the centre, and its distance is then recomputed
+/// exactly, since `‖x‖² − 2x·c + ‖c‖²` loses precision to cancellation. A row of the
+/// product depends only on its point, so settling points changes no label.
+fn nearest(points: &Points, centres: &Points, labels: &[usize], scoring: &mut Scoring) -> Assignment {
+    let all: Vec<usize> = (0..centres.n).collect();
+    let moved_centres = scoring.rows(centres, &all);
+    let moved_centres = matrix(&moved_centres, centres.n, centres.d);
+    let zero = vec![0f32; centres.d];
+    let norms: Vec<f32> =
+        moved_centres.rows().into_iter().map(|c| squared_distance(&c.to_vec(), &zero)).collect();
+    let bounds = &scoring.bounds;
+    let centre_norm = bounds.distance_above(norms.iter().copied().fold(0.0, f32::max));
+    let own: Vec<Option<(f32, bool)>> = (0..points.n)
+        .into_par_iter()
+        .with_min_len(64)
+        .map(|i| {
+            (bounds.per_centre() && bounds.known(i)).then(|| {
+                let distance = squared_distance(points.row(i), centres.row(labels[i]));
+                (distance, bounds.settles(i, labels[i], distance, centre_norm))
+            })
+        })
+        .collect();
+    let mut assignment = Assignment { labels: labels.to_vec(), distances: vec![0f32; points.n] };
+    let mut open = Vec::new();
+    for (i, own) in own.into_iter().enumerate() {
+        match own {
+            Some((distance, true)) => {
+                scoring.bounds.tighten(i, distance);
+                assignment.distances[i] = distance;
+            }
+            _ => open.push(i),
+        }
+    }
+    let (shared, transposed) = (&*scoring, moved_centres.reversed_axes());
+    let evaluated: Vec<Vec<(usize, f32, Vec<f32>)>> = open
+        .par_chunks(ROW_BLOCK)
+        .map(|block| {
+            let rows = shared.rows(points, block);
+            let dots = matrix(&rows, block.len(), points.d).dot(&transposed);
+            let evaluate = |(&i, row): (&usize, ndarray::ArrayView1<f32>)| {
+                let row = row.to_slice().expect("a GEMM result row is contiguous");
+                let best = lowest_score(&norms, row);
+                let distance = squared_distance(points.row(i), centres.row(best));
+                let scores = norms.iter().zip(row).map(|(n, d)| n - 2.0 * d);
+                (best, distance, shared.bounds.lower_row(i, scores, centre_norm))
+            };
+            block.iter().zip(dots.rows()).map(evaluate).collect()
+        })
+        .collect();
+    scoring.evaluated += open.len();
+    for (&i, (label, distance, lower)) in open.iter().zip(evaluated.into_iter().flatten()) {
+        (assignment.labels[i], assignment.distances[i]) = (label, distance);
+        scoring.bounds.record(i, distance, &lower);
+    }
+    assignment
 }
 
 /// The index of the smallest `norms[j] − 2 dots[j]`, the lowest index among equal scores.
@@ -440,25 +541,25 @@ fn lowest_score(norms: &[f32], dots: &[f32]) -> usize {
 }
 
 /// Gives each empty cluster the point farthest from its centre (ties: lowest index), so
-/// that no centre is wasted. Returns how many clusters were re-seeded.
-fn reseed_empty(assignment: &mut Assignment, k: usize) -> usize {
+/// that no centre is wasted. Returns the points that moved to one.
+fn reseed_empty(assignment: &mut Assignment, k: usize) -> Vec<usize> {
     let mut counts = vec![0usize; k];
     assignment.labels.iter().for_each(|&l| counts[l] += 1);
     let empty: Vec<usize> = (0..k).filter(|&j| counts[j] == 0).collect();
     if empty.is_empty() {
-        return 0;
+        return Vec::new();
     }
     let d = &assignment.distances;
     let mut farthest: Vec<usize> = (0..d.len()).collect();
     farthest.sort_by(|&a, &b| d[b].total_cmp(&d[a]).then(a.cmp(&b)));
-    let mut reseeded = 0;
+    let mut reseeded = Vec::new();
     for (&cluster, &point) in empty.iter().zip(&farthest) {
         if assignment.distances[point] <= 0.0 {
             break; // the remaining points all sit on a centre already
         }
         assignment.labels[point] = cluster;
         assignment.distances[point] = 0.0;
-        reseeded += 1;
+        reseeded.push(point);
     }
     reseeded
 }
@@ -485,14 +586,14 @@ fn means(points: &Points, labels: &[usize], previous: &Array2<f32>) -> Array2<f3
     centres
 }
 
-/// Total squared distance the centres moved.
-fn squared_shift(before: &Array2<f32>, after: &Array2<f32>) -> f64 {
+/// The squared distance each centre moved.
+fn squared_shifts(before: &Array2<f32>, after: &Array2<f32>) -> Vec<f32> {
     let (b, a) = (centre_view(before), centre_view(after));
-    (0..b.n).map(|j| squared_distance(b.row(j), a.row(j)) as f64).sum()
+    (0..b.n).map(|j| squared_distance(b.row(j), a.row(j))).collect()
 }
 
-/// Sum over dimensions of the data's variance (mean squared distance to the mean point).
-fn total_variance(points: &Points) -> f64 {
+/// The mean point, summed in f64 over blocks of [`ROW_BLOCK`] points.
+fn mean(points: &Points) -> Vec<f64> {
     let block_sums: Vec<Vec<f64>> = (0..points.n.div_ceil(ROW_BLOCK))
         .into_par_iter()
         .map(|b| {
@@ -508,9 +609,14 @@ fn total_variance(points: &Points) -> f64 {
         mean.iter_mut().zip(sum).for_each(|(m, s)| *m += s);
     }
     mean.iter_mut().for_each(|m| *m /= points.n as f64);
+    mean
+}
+
+/// Sum over dimensions of the data's variance (mean squared distance to `mean`).
+fn total_variance(points: &Points, mean: &[f64]) -> f64 {
     let per_point: Vec<f64> = (0..points.n)
         .into_par_iter()
-        .map(|i| points.row(i).iter().zip(&mean).map(|(&x, m)| (x as f64 - m).powi(2)).sum())
+        .map(|i| points.row(i).iter().zip(mean).map(|(&x, m)| (x as f64 - m).powi(2)).sum())
         .collect();
     per_point.iter().sum::<f64>() / points.n as f64
 }
@@ -598,6 +704,29 @@ mod tests {
     }
 
     #[test]
+    fn settled_points_change_no_label_and_save_rows() {
+        // Overlapping blobs far from the origin, in rows long enough for bounds.
+        let centres = uniform(30, LONG_ROWS, 4.0, 21).mapv(|v| v + 50.0);
+        let (data, _) = blobs(&centres, 40, 2.0, 22);
+        let owned = standard(data.view());
+        let points = Points::new(&owned).unwrap();
+        let options = KMeansOptions { k: 30, tolerance: 0.0, ..KMeansOptions::default() };
+        let run = |most| {
+            let seeds = plus_plus(&points, 30, &mut ChaCha8Rng::seed_from_u64(3), &Silent);
+            let mut scoring = Scoring::around(&mean(&points), &points, 30, most);
+            (iterate(&points, seeds, &options, &Silent, &mut scoring), scoring.evaluated)
+        };
+        let ((bounded, fewer), (plain, all)) = (run(MOST_LOWER_BOUNDS), run(0));
+        assert_eq!(all, points.n * (plain.iterations + 1));
+        assert!(fewer < all * 3 / 4, "{fewer} of {all} rows evaluated");
+        assert!(bounded.iterations > 3, "{} iterations", bounded.iterations);
+        let bits = |c: &Clustering| c.centres.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&bounded), bits(&plain));
+        assert_eq!(bounded.labels, plain.labels);
+        assert_eq!(bounded.inertia.to_bits(), plain.inertia.to_bits());
+    }
+
+    #[test]
     fn a_fit_on_a_subset_labels_every_point_nearly_as_well_as_a_full_fit() {
         // Overlapping blobs, so the centres are estimates, not just the planted points.
         let centres = uniform(12, 6, 8.0, 11);
@@ -658,7 +787,7 @@ mod tests {
     #[test]
     fn empty_clusters_take_the_farthest_point() {
         let mut a = Assignment { labels: vec![0, 0, 0, 2, 0], distances: vec![1.0, 5.0, 3.0, 0.5, 5.0] };
-        assert_eq!(reseed_empty(&mut a, 4), 2);
+        assert_eq!(reseed_empty(&mut a, 4), [1, 4]);
         assert_eq!(a.labels, [0, 1, 0, 2, 3]);
         // A centre far from all points gets none; Lloyd's iterations give it the outlier.
         let data = ndarray::array![[0.0f32, 0.0], [0.1, 0.0], [0.0, 0.1], [5.0, 5.0]];

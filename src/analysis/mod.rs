@@ -4,6 +4,7 @@
 //! - [`convolve`]: every image filtered with a whole bank by FFT.
 //! - [`kmeans`](mod@kmeans): seeded, thread-count-independent k-means for textons and representative
 //!   images.
+//! - [`elkan`]: bounds that let Lloyd's iterations skip points whose centre cannot change.
 //! - [`basis`]: principal images, so that only a few basis images need filtering.
 //! - [`products`]: matrix products split over rayon tasks with the bits of one product.
 //! - [`gamma`]: Γ, texton distances and the spectral embedding.
@@ -14,6 +15,7 @@
 pub mod appearance;
 pub mod basis;
 pub mod convolve;
+pub mod elkan;
 pub mod features;
 pub mod filters;
 pub mod gamma;
