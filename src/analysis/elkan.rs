@@ -40,10 +40,10 @@ impl Bounds {
         Bounds { upper: vec![f64::INFINITY; n], lower, norms, dims, k }
     }
 
-    /// Relative error of a sum of `dims` non-negative f32 terms, with room to spare
-    /// (Higham's γₙ, doubled).
+    /// Relative error of a sum of `dims` f32 products, with fourfold room: Higham's
+    /// γₙ ≈ n·u with u = ε/2, and one more rounding for the score's subtraction.
     fn relative_error(&self) -> f64 {
-        4.0 * (self.dims + 3) as f64 * f32::EPSILON as f64
+        2.0 * (self.dims + 3) as f64 * f32::EPSILON as f64
     }
 
     /// An upper bound on a distance whose square was computed as `squared` in f32.
@@ -51,7 +51,7 @@ impl Bounds {
         (squared.max(0.0) as f64 * (1.0 + self.relative_error())).sqrt()
     }
 
-    /// The most a score `‖c‖² − 2x·c` of point `i` can be off by, for centres of norm at
+    /// The most a score `‖c‖² − 2x·c` of point `i` can be off by, for a centre of norm at
     /// most `centre_norm`: the products' error is bounded by γₙ·Σ|xₖcₖ| ≤ γₙ‖x‖‖c‖.
     fn score_error(&self, i: usize, centre_norm: f64) -> f64 {
         self.relative_error() * (centre_norm * centre_norm + 2.0 * self.norms[i] * centre_norm)
@@ -69,13 +69,14 @@ impl Bounds {
     }
 
     /// Point `i`'s lower bounds from a full evaluation: every centre's score `‖c‖² − 2x·c`
-    /// (as rounded), for centres of norm at most `centre_norm`. Empty if none are kept.
-    pub fn lower_row(&self, i: usize, scores: impl Iterator<Item = f32>, centre_norm: f64) -> Vec<f32> {
+    /// (as rounded), with the centres' norms at most `centre_norms`. Empty if none are kept.
+    pub fn lower_row(&self, i: usize, scores: impl Iterator<Item = f32>, centre_norms: &[f64]) -> Vec<f32> {
         if !self.per_centre() {
             return Vec::new();
         }
-        let (square, error) = (self.norms[i] * self.norms[i], self.score_error(i, centre_norm));
-        scores.map(|score| round_down((score as f64 + square - error).max(0.0).sqrt())).collect()
+        let square = self.norms[i] * self.norms[i];
+        let bound = |(score, &norm): (f32, &f64)| score as f64 + square - self.score_error(i, norm);
+        scores.zip(centre_norms).map(|s| round_down(bound(s).max(0.0).sqrt())).collect()
     }
 
     /// Records a full evaluation of point `i`: the squared distance to its nearest centre
@@ -93,17 +94,19 @@ impl Bounds {
     }
 
     /// Whether point `i`, `squared` (as computed) from its centre `label`, certainly keeps
-    /// it among centres of norm at most `centre_norm`: every other centre is farther by more
-    /// than the scores' rounding.
-    pub fn settles(&self, i: usize, label: usize, squared: f32, centre_norm: f64) -> bool {
+    /// it, the centres' norms being at most `centre_norms`: every other centre is farther by
+    /// more than the two scores' rounding.
+    pub fn settles(&self, i: usize, label: usize, squared: f32, centre_norms: &[f64]) -> bool {
         if !self.per_centre() || !self.upper[i].is_finite() {
             return false;
         }
         let upper = self.distance_above(squared);
+        let own = upper * upper + self.score_error(i, centre_norms[label]);
         let row = &self.lower[i * self.k..(i + 1) * self.k];
-        let others = row.iter().enumerate().filter(|&(j, _)| j != label);
-        let nearest_other = others.map(|(_, &l)| l).fold(f32::INFINITY, f32::min) as f64;
-        nearest_other * nearest_other - upper * upper > 2.0 * self.score_error(i, centre_norm)
+        let others = row.iter().zip(centre_norms).enumerate().filter(|&(j, _)| j != label);
+        others
+            .map(|(_, (&l, &norm))| l as f64 * l as f64 - self.score_error(i, norm))
+            .all(|other| other > own)
     }
 
     /// Point `i` changed centre outside a full evaluation: nothing is known.
@@ -154,47 +157,47 @@ mod tests {
     #[test]
     fn a_point_far_inside_its_cluster_is_settled_until_the_centres_move_enough() {
         let mut bounds = Bounds::new(vec![1.0], 4, 2, MOST_LOWER_BOUNDS);
-        assert!(!bounds.settles(0, 0, 1.0, 10.0), "nothing is known before a full evaluation");
+        assert!(!bounds.settles(0, 0, 1.0, &[10.0; 2]), "nothing is known before a full evaluation");
         // Own centre at distance 1, the other at distance 3: score = d² − ‖x‖².
-        let lower = bounds.lower_row(0, [0.0, 8.0].into_iter(), 10.0);
+        let lower = bounds.lower_row(0, [0.0, 8.0].into_iter(), &[10.0; 2]);
         bounds.record(0, 1.0, &lower);
-        assert!(bounds.settles(0, 0, 1.0, 10.0));
+        assert!(bounds.settles(0, 0, 1.0, &[10.0; 2]));
         bounds.moved(&[0], &[0.5, 0.5]);
-        assert!(bounds.settles(0, 0, 1.5 * 1.5, 10.0), "1.5 < 2.5");
+        assert!(bounds.settles(0, 0, 1.5 * 1.5, &[10.0; 2]), "1.5 < 2.5");
         bounds.moved(&[0], &[0.6, 0.6]);
-        assert!(!bounds.settles(0, 0, 2.1 * 2.1, 10.0), "2.1 > 1.9");
-        assert!(bounds.settles(0, 0, 1.0, 10.0), "own centre measured again: 1 < 1.9");
+        assert!(!bounds.settles(0, 0, 2.1 * 2.1, &[10.0; 2]), "2.1 > 1.9");
+        assert!(bounds.settles(0, 0, 1.0, &[10.0; 2]), "own centre measured again: 1 < 1.9");
         bounds.forget(0);
-        assert!(!bounds.settles(0, 0, 1.0, 10.0));
+        assert!(!bounds.settles(0, 0, 1.0, &[10.0; 2]));
     }
 
     #[test]
     fn each_centre_lowers_its_own_bound() {
         let mut bounds = Bounds::new(vec![0.0], 2, 3, MOST_LOWER_BOUNDS);
-        let lower = bounds.lower_row(0, [0.0, 16.0, 4.0].into_iter(), 1.0);
+        let lower = bounds.lower_row(0, [0.0, 16.0, 4.0].into_iter(), &[1.0; 3]);
         bounds.record(0, 0.0, &lower);
         bounds.moved(&[0], &[0.0, 3.0, 1.0]);
         let close = |a: f32, b: f32| (a - b).abs() < 1e-5;
         assert!(close(bounds.lower[1], 1.0) && close(bounds.lower[2], 1.0), "{:?}", bounds.lower);
-        assert!(bounds.settles(0, 0, 0.0, 1.0));
+        assert!(bounds.settles(0, 0, 0.0, &[1.0; 3]));
     }
 
     #[test]
     fn near_ties_are_never_settled() {
         // Large points, close centres: the gap 1e-4 is within the scores' rounding.
         let mut bounds = Bounds::new(vec![1000.0], 64, 2, MOST_LOWER_BOUNDS);
-        let lower = bounds.lower_row(0, [1.0 - 1e6, 1.0001 - 1e6].into_iter(), 1000.0);
+        let lower = bounds.lower_row(0, [1.0 - 1e6, 1.0001 - 1e6].into_iter(), &[1000.0; 2]);
         bounds.record(0, 1.0, &lower);
-        assert!(!bounds.settles(0, 0, 1.0, 1000.0));
+        assert!(!bounds.settles(0, 0, 1.0, &[1000.0; 2]));
     }
 
     #[test]
     fn too_many_bounds_settle_nothing() {
         let mut bounds = Bounds::new(vec![1.0; 1 << 13], 4, 1 << 12, MOST_LOWER_BOUNDS);
         assert!(!bounds.per_centre());
-        let lower = bounds.lower_row(0, std::iter::repeat(1e6), 10.0);
+        let lower = bounds.lower_row(0, std::iter::repeat(1e6), &[10.0; 1 << 12]);
         bounds.record(0, 1.0, &lower);
-        assert!(!bounds.settles(0, 0, 1.0, 10.0));
+        assert!(!bounds.settles(0, 0, 1.0, &[10.0; 2]));
     }
 
     #[test]

@@ -462,14 +462,14 @@ fn nearest(points: &Points, centres: &Points, labels: &[usize], scoring: &mut Sc
     let norms: Vec<f32> =
         moved_centres.rows().into_iter().map(|c| squared_distance(&c.to_vec(), &zero)).collect();
     let bounds = &scoring.bounds;
-    let centre_norm = bounds.distance_above(norms.iter().copied().fold(0.0, f32::max));
+    let centre_norms: Vec<f64> = norms.iter().map(|&n| bounds.distance_above(n)).collect();
     let own: Vec<Option<(f32, bool)>> = (0..points.n)
         .into_par_iter()
         .with_min_len(64)
         .map(|i| {
             (bounds.per_centre() && bounds.known(i)).then(|| {
                 let distance = squared_distance(points.row(i), centres.row(labels[i]));
-                (distance, bounds.settles(i, labels[i], distance, centre_norm))
+                (distance, bounds.settles(i, labels[i], distance, &centre_norms))
             })
         })
         .collect();
@@ -495,7 +495,7 @@ fn nearest(points: &Points, centres: &Points, labels: &[usize], scoring: &mut Sc
                 let best = lowest_score(&norms, row);
                 let distance = squared_distance(points.row(i), centres.row(best));
                 let scores = norms.iter().zip(row).map(|(n, d)| n - 2.0 * d);
-                (best, distance, shared.bounds.lower_row(i, scores, centre_norm))
+                (best, distance, shared.bounds.lower_row(i, scores, &centre_norms))
             };
             block.iter().zip(dots.rows()).map(evaluate).collect()
         })
