@@ -162,8 +162,13 @@ fn streamed_in_blocks(
     let (mut total, mut y) = (0f64, Array2::<f32>::zeros((n, q)));
     for (start, len) in blocks() {
         let c = centred(start, len);
-        total = c.iter().fold(total, |t, &v| t + (v as f64) * (v as f64));
-        y.slice_mut(s![start..start + len, ..]).assign(&rows_in_parallel(c.view(), omega.view(), TASK_ROWS));
+        // The energy is one running sum in order, so it takes a core beside the product.
+        let (sum, product) = rayon::join(
+            || c.iter().fold(total, |t, &v| t + (v as f64) * (v as f64)),
+            || rows_in_parallel(c.view(), omega.view(), TASK_ROWS),
+        );
+        total = sum;
+        y.slice_mut(s![start..start + len, ..]).assign(&product);
     }
     if total <= 0.0 {
         return Ok(PrincipalImages {
