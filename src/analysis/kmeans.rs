@@ -5,7 +5,8 @@
 //! (`k = 400` clusters of 4096 points × thousands of dimensions).
 //!
 //! Squared distances to all centres come from one matrix product per block of points,
-//! `‖x‖² − 2 x·c + ‖c‖²`; k-means++ keeps each point's distance to its nearest centre and
+//! `‖x‖² − 2 x·c + ‖c‖²`, skipped for points that [Elkan's bounds](super::elkan) show
+//! cannot change centre; k-means++ keeps each point's distance to its nearest centre and
 //! updates it with one pass per added centre.
 //!
 //! # Determinism
@@ -207,7 +208,8 @@ pub fn assign(data: ArrayView2<'_, f32>, centres: ArrayView2<'_, f32>) -> Result
             centre_points.d, points.d
         )));
     }
-    let mut scoring = Scoring::around(&mean(&points), &points, centre_points.n, MOST_LOWER_BOUNDS);
+    // One assignment: bounds would only be kept, never used.
+    let mut scoring = Scoring::around(&mean(&points), &points, centre_points.n, 0);
     Ok(nearest(&points, &centre_points, &vec![0; points.n], &mut scoring))
 }
 

@@ -8,26 +8,22 @@ use rayon::prelude::*;
 
 /// `a · b` with `a`'s rows split into tasks of `rows` rows.
 pub fn rows_in_parallel(a: ArrayView2<f32>, b: ArrayView2<f32>, rows: usize) -> Array2<f32> {
-    let blocks: Vec<Array2<f32>> = a
-        .axis_chunks_iter(Axis(0), rows.max(1))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|a| a.dot(&b))
-        .collect();
-    let views: Vec<ArrayView2<f32>> = blocks.iter().map(|m| m.view()).collect();
-    concatenate(Axis(0), &views).unwrap_or_else(|_| Array2::zeros((0, b.ncols())))
+    split_product(a.view(), b.view(), Axis(0), rows)
 }
 
 /// `a · b` with `b`'s columns split into tasks of `columns` columns.
 pub fn columns_in_parallel(a: ArrayView2<f32>, b: ArrayView2<f32>, columns: usize) -> Array2<f32> {
-    let blocks: Vec<Array2<f32>> = b
-        .axis_chunks_iter(Axis(1), columns.max(1))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|b| a.dot(&b))
-        .collect();
+    split_product(a.view(), b.view(), Axis(1), columns)
+}
+
+/// `a · b` split along the product's `axis` (0: `a`'s rows, 1: `b`'s columns).
+fn split_product<'a>(a: ArrayView2<'a, f32>, b: ArrayView2<'a, f32>, axis: Axis, size: usize) -> Array2<f32> {
+    let split = if axis == Axis(0) { a } else { b };
+    let parts: Vec<ArrayView2<f32>> = split.axis_chunks_iter(axis, size.max(1)).collect();
+    let product = |part: ArrayView2<f32>| if axis == Axis(0) { part.dot(&b) } else { a.dot(&part) };
+    let blocks: Vec<Array2<f32>> = parts.into_par_iter().map(product).collect();
     let views: Vec<ArrayView2<f32>> = blocks.iter().map(|m| m.view()).collect();
-    concatenate(Axis(1), &views).unwrap_or_else(|_| Array2::zeros((a.nrows(), 0)))
+    concatenate(axis, &views).unwrap_or_else(|_| a.dot(&b))
 }
 
 /// `c ← a · b + beta · c`, with `c` (and `a`) split by rows into tasks of `rows` rows.

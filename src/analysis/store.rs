@@ -266,7 +266,7 @@ fn write_sample(
     let staged = StagedDir::new(dir, overwrite)?;
     let out = staged.path();
     let (n, w, h) = stored.size();
-    // Both read the whole sample, one after the other: one core each.
+    // The write and the fingerprint each read the whole sample in order: a core each.
     let (sample, print) = rayon::join(
         || match stored {
             Stored::Images(btf) => {
