@@ -11,6 +11,7 @@ use super::products::{accumulate_by_columns, accumulate_by_rows, rows_in_paralle
 use crate::seeded::normal;
 use crate::{Error, Result};
 use ndarray::{s, Array1, Array2, ArrayView2, Axis};
+use rayon::prelude::*;
 
 /// How the basis is computed.
 #[derive(Clone, Copy, Debug)]
@@ -156,7 +157,16 @@ fn streamed_in_blocks(
         source.block(start, len).rows().into_iter().for_each(|row| sum += &row);
     }
     let mean = sum / n as f32;
-    let centred = |start: usize, len: usize| source.block(start, len) - &mean;
+    let centred = |start: usize, len: usize| {
+        let mut block = source.block(start, len);
+        if let Some(values) = block.as_slice_mut() {
+            let subtract = |row: &mut [f32]| row.iter_mut().zip(&mean).for_each(|(v, m)| *v -= m);
+            values.par_chunks_mut(p).for_each(subtract);
+        } else {
+            block -= &mean;
+        }
+        block
+    };
     let q = (options.max_rank + 10).min(n).min(p);
     let omega = Array2::from_shape_fn((p, q), |(i, j)| normal(options.seed, i as i64, j as i64));
     let (mut total, mut y) = (0f64, Array2::<f32>::zeros((n, q)));

@@ -13,6 +13,7 @@ use super::kmeans::{kmeans, KMeansOptions};
 use crate::progress::Progress;
 use crate::Result;
 use ndarray::Array2;
+use rayon::prelude::*;
 
 /// Grid points per side of the subsampling grid (about).
 const GRID_POINTS: usize = 16;
@@ -84,9 +85,10 @@ fn response_coordinates(
         let responses = rgb_responses(component, width, height, convolver, padding)?;
         sampled.push(grid.iter().flat_map(|&p| responses.column(p).to_vec()).collect::<Vec<f32>>());
     }
-    let gram = Array2::from_shape_fn((r, r), |(i, j)| {
-        sampled[i].iter().zip(&sampled[j]).map(|(a, b)| (*a as f64) * (*b as f64)).sum::<f64>()
-    });
+    let dot =
+        |i: usize, j: usize| sampled[i].iter().zip(&sampled[j]).map(|(a, b)| (*a as f64) * (*b as f64)).sum();
+    let rows: Vec<Vec<f64>> = (0..r).into_par_iter().map(|i| (0..r).map(|j| dot(i, j)).collect()).collect();
+    let gram = Array2::from_shape_fn((r, r), |(i, j)| rows[i][j]);
     let eigen = nalgebra::DMatrix::from_fn(r, r, |i, j| gram[[i, j]]).symmetric_eigen();
     let root = &eigen.eigenvectors
         * nalgebra::DMatrix::from_diagonal(&eigen.eigenvalues.map(|v| v.max(0.0).sqrt()))
