@@ -74,7 +74,8 @@ const SCATTER_ROWS: usize = 64;
 
 /// Copies each plane's responses (`filters` rows of pixels), scaled by its weight, into
 /// the features' columns from its first, pixel rows split over rayon tasks: the copy
-/// transposes, and on one core it took as long as the filtering it follows.
+/// transposes (a write per pixel and filter, each a row apart), and on one core the other
+/// idled.
 fn scatter(features: &mut Array2<f32>, planes: &[(usize, f32, &[f32])], filters: usize) {
     let (pixels, cols) = features.dim();
     let values = features.as_slice_mut().expect("the features are built row-major");
