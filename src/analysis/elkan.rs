@@ -52,9 +52,13 @@ impl Bounds {
     }
 
     /// The most a score `‖c‖² − 2x·c` of point `i` can be off by, for a centre of norm at
-    /// most `centre_norm`: the products' error is bounded by γₙ·Σ|xₖcₖ| ≤ γₙ‖x‖‖c‖.
+    /// most `centre_norm`: the products' error is bounded by γₙ·Σ|xₖcₖ| ≤ γₙ‖x‖‖c‖. The
+    /// second term covers the scores' vectors being the points and centres moved to the
+    /// origin in f32 (each component rounded once), while the bounds measure the vectors
+    /// themselves: the squared distances differ by less than 3u(‖x‖ + ‖c‖)².
     fn score_error(&self, i: usize, centre_norm: f64) -> f64 {
-        self.relative_error() * (centre_norm * centre_norm + 2.0 * self.norms[i] * centre_norm)
+        let (x, c) = (self.norms[i], centre_norm);
+        self.relative_error() * (c * c + 2.0 * x * c) + 2.0 * f32::EPSILON as f64 * (x + c) * (x + c)
     }
 
     /// Whether a bound is kept per point and centre (false when there would be too many,
