@@ -458,11 +458,10 @@ impl Scoring {
 /// product depends only on its point, so settling points changes no label.
 fn nearest(points: &Points, centres: &Points, labels: &[usize], scoring: &mut Scoring) -> Assignment {
     let all: Vec<usize> = (0..centres.n).collect();
-    let moved_centres = scoring.rows(centres, &all);
-    let moved_centres = matrix(&moved_centres, centres.n, centres.d);
+    let moved_rows = scoring.rows(centres, &all);
     let zero = vec![0f32; centres.d];
-    let norms: Vec<f32> =
-        moved_centres.rows().into_iter().map(|c| squared_distance(&c.to_vec(), &zero)).collect();
+    let norms: Vec<f32> = moved_rows.chunks_exact(centres.d).map(|c| squared_distance(c, &zero)).collect();
+    let moved_centres = matrix(&moved_rows, centres.n, centres.d);
     let bounds = &scoring.bounds;
     let centre_norms: Vec<f64> = norms.iter().map(|&n| bounds.distance_above(n)).collect();
     let own: Vec<Option<(f32, bool)>> = (0..points.n)
