@@ -7,7 +7,8 @@ use super::slot::Slot;
 use crate::mesh::frames::Frames;
 use crate::mesh::topology::{edge_incidences, one_rings, VertexRings};
 use crate::mesh::Mesh;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 use std::collections::VecDeque;
 use std::f32::consts::TAU;
 
@@ -25,6 +26,32 @@ pub(super) struct Topology {
     vertex_faces: Vec<u32>,
     /// Per face, the face across edge k (corners k → k + 1), or [`NO_FACE`].
     across: Vec<[u32; 3]>,
+    /// Per face, what flattening measures of it in space. A face is flattened into the
+    /// patches of a hundred or more vertices; measuring it once saves those patches their
+    /// arc cosines, sines and square roots (the same calls on the same values: the same
+    /// bits).
+    shapes: Vec<FaceShape>,
+}
+
+/// The measures of one face in space that flattening uses.
+struct FaceShape {
+    /// Per corner k (a = corner k, b = k + 1, c = k + 2): the rotation by the angle at a
+    /// from a → b to a → c, and the length of a → c; what places c against edge a → b.
+    apex: [(Vec2, f32); 3],
+    /// The longest of its edges.
+    longest: f32,
+}
+
+impl FaceShape {
+    fn of(p: &[Vec3], t: [u32; 3]) -> FaceShape {
+        let corner = |k: usize| p[t[k] as usize];
+        let apex = std::array::from_fn(|k| {
+            let (ab, ac) = (corner((k + 1) % 3) - corner(k), corner((k + 2) % 3) - corner(k));
+            (Vec2::from_angle(ab.angle_between(ac)), ac.length())
+        });
+        let longest = (0..3).map(|k| corner(k).distance(corner((k + 1) % 3))).fold(0.0, f32::max);
+        FaceShape { apex, longest }
+    }
 }
 
 impl Topology {
@@ -47,7 +74,9 @@ impl Topology {
                 fill[c as usize] += 1;
             }
         }
-        Topology { rings: one_rings(mesh), face_start, vertex_faces, across: across(triangles) }
+        let p = mesh.positions();
+        let shapes = triangles.par_iter().map(|&t| FaceShape::of(p, t)).collect();
+        Topology { rings: one_rings(mesh), face_start, vertex_faces, across: across(triangles), shapes }
     }
 
     fn faces_of(&self, v: u32) -> &[u32] {
@@ -75,14 +104,16 @@ fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
 /// reused for every vertex a thread flattens: per-mesh arrays stamped with the patch's
 /// generation stand in for maps and sets (hashing was most of the templates' time).
 pub(super) struct Patch {
-    /// Faces in the order they were reached (the vertex's own faces first).
-    pub(super) faces: Vec<u32>,
+    /// Faces in the order they were reached (the vertex's own faces first), with their
+    /// flattened corners.
+    pub(super) faces: Vec<(u32, [Vec2; 3])>,
     /// Vertices in the order they were placed (the centre first).
     pub(super) order: Vec<u32>,
     generation: u32,
-    /// Per mesh vertex: the generation that placed it, and where.
+    /// Per mesh vertex: the generation that placed it, where, and how far from the centre.
     placed: Vec<u32>,
     uv: Vec<Vec2>,
+    uv_length: Vec<f32>,
     /// Per mesh face: the generation that reached it.
     reached: Vec<u32>,
 }
@@ -95,6 +126,7 @@ impl Patch {
             generation: 0,
             placed: vec![0; mesh.vertex_count()],
             uv: vec![Vec2::ZERO; mesh.vertex_count()],
+            uv_length: vec![0.0; mesh.vertex_count()],
             reached: vec![0; mesh.face_count()],
         }
     }
@@ -120,6 +152,7 @@ impl Patch {
         if self.placed[vertex as usize] != self.generation {
             self.placed[vertex as usize] = self.generation;
             self.uv[vertex as usize] = at;
+            self.uv_length[vertex as usize] = at.length();
             self.order.push(vertex);
         }
     }
@@ -154,14 +187,16 @@ pub(super) fn flatten(
         }
     }
     while let Some(f) = queue.pop_front() {
-        patch.faces.push(f);
         let Some(corners) = patch.corners(mesh, f) else { continue };
-        if !within_reach(&corners, reach) || !within_reach_in_space(mesh, f, v, reach) {
+        patch.faces.push((f, corners));
+        if !within_reach(patch, mesh.triangles()[f as usize], &corners, reach)
+            || !within_reach_in_space(mesh, topology, f, v, reach)
+        {
             continue;
         }
         for &g in &topology.across[f as usize] {
             if g != NO_FACE && patch.reach(g) {
-                place_apex(mesh, g, patch);
+                place_apex(mesh, topology, g, patch);
                 queue.push_back(g);
             }
         }
@@ -170,8 +205,8 @@ pub(super) fn flatten(
 
 /// Whether a flattened triangle may still reach into the template, so that its
 /// neighbours are worth flattening too.
-fn within_reach(corners: &[Vec2; 3], reach: f32) -> bool {
-    let nearest = corners.iter().map(|c| c.length()).fold(f32::INFINITY, f32::min);
+fn within_reach(patch: &Patch, face: [u32; 3], corners: &[Vec2; 3], reach: f32) -> bool {
+    let nearest = face.iter().map(|&c| patch.uv_length[c as usize]).fold(f32::INFINITY, f32::min);
     let longest = (0..3).map(|k| corners[k].distance(corners[(k + 1) % 3])).fold(0.0, f32::max);
     nearest <= reach + longest
 }
@@ -180,12 +215,11 @@ fn within_reach(corners: &[Vec2; 3], reach: f32) -> bool {
 /// is never longer than a path on the surface, so a face beyond reach in space is beyond
 /// it on the surface too, however the flattening (which closes loops inconsistently around
 /// cones and handles) has placed it.
-fn within_reach_in_space(mesh: &Mesh, f: u32, v: u32, reach: f32) -> bool {
+fn within_reach_in_space(mesh: &Mesh, topology: &Topology, f: u32, v: u32, reach: f32) -> bool {
     let p = mesh.positions();
     let t = mesh.triangles()[f as usize].map(|c| p[c as usize]);
     let nearest = t.iter().map(|c| c.distance(p[v as usize])).fold(f32::INFINITY, f32::min);
-    let longest = (0..3).map(|k| t[k].distance(t[(k + 1) % 3])).fold(0.0, f32::max);
-    nearest <= reach + longest
+    nearest <= reach + topology.shapes[f as usize].longest
 }
 
 /// Places the one-ring of `v`: each neighbour at its true distance, the angles between
@@ -225,19 +259,17 @@ fn unfold_ring(mesh: &Mesh, frames: &Frames, topology: &Topology, v: u32, patch:
 /// counter-clockwise. Anchoring at a (rather than intersecting circles around a and b)
 /// stays well-defined when a and b were placed by different routes and the flat edge no
 /// longer has its length; where it does, this is the rigid placement.
-fn place_apex(mesh: &Mesh, g: u32, patch: &mut Patch) {
+fn place_apex(mesh: &Mesh, topology: &Topology, g: u32, patch: &mut Patch) {
     let t = mesh.triangles()[g as usize];
-    let p = mesh.positions();
     for k in 0..3 {
         let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
         if patch.uv_of(c).is_some() {
             continue;
         }
         let (Some(pa), Some(pb)) = (patch.uv_of(a), patch.uv_of(b)) else { continue };
-        let (ab, ac) = (p[b as usize] - p[a as usize], p[c as usize] - p[a as usize]);
+        let (turn, length) = topology.shapes[g as usize].apex[k];
         let direction = (pb - pa).try_normalize().unwrap_or(Vec2::X);
-        let turn = Vec2::from_angle(ab.angle_between(ac));
-        patch.place(c, pa + direction.rotate(turn) * ac.length());
+        patch.place(c, pa + direction.rotate(turn) * length);
         return;
     }
 }

@@ -395,10 +395,9 @@ fn raw_barycentric(q: Vec2, t: &[Vec2; 3]) -> [f32; 3] {
 /// each piece takes the first face (breadth-first, the least distorted) holding its middle,
 /// as the square templates do.
 fn circle_arcs(mesh: &Mesh, patch: &Patch, radius: f32) -> Vec<Arc> {
-    let faces: Vec<(u32, [Vec2; 3])> =
-        patch.faces.iter().filter_map(|&f| Some((f, patch.corners(mesh, f)?))).collect();
+    let faces = &patch.faces;
     let mut cuts: Vec<f32> = Vec::new();
-    for (_, corners) in &faces {
+    for (_, corners) in faces {
         for k in 0..3 {
             edge_crossings(corners[k], corners[(k + 1) % 3], radius, &mut cuts);
         }

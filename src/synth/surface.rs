@@ -9,6 +9,7 @@
 //! surface point of offset (dx, dy) is `v + texel·(dx·s − dy·t)`.
 
 use super::flatten::{barycentric, flatten, slot, Patch, Topology};
+use super::slot::OUTSIDE;
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::frames::Frames;
@@ -37,20 +38,23 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
     // A triangle can overlap the template's square only if one of its corners lies within
     // the square's circumradius plus one of its edges.
     let reach = r as f32 * texel * std::f32::consts::SQRT_2;
-    let per_vertex: Vec<(Vec<Slot>, Vec<Shift>)> = (0..mesh.vertex_count())
-        .into_par_iter()
+    // Each vertex's slots go straight to their place in the level's array: a copy from
+    // per-vertex vectors had doubled the memory of the finest level's templates.
+    let mut slots = vec![Slot::DEFAULT; mesh.vertex_count() * template * template];
+    let per_vertex: Vec<Vec<Shift>> = slots
+        .par_chunks_mut(template * template)
+        .enumerate()
         .map_init(
             || Patch::new(mesh),
-            |patch, v| {
+            |patch, (v, vertex_slots)| {
                 flatten(mesh, frames, &topology, v as u32, reach, patch);
-                (resample(mesh, patch, v as u32, texel, r), patch_shifts(patch, texel, r))
+                resample(mesh, patch, v as u32, texel, r, vertex_slots);
+                patch_shifts(patch, texel, r)
             },
         )
         .collect();
-    let mut slots = Vec::with_capacity(mesh.vertex_count() * template * template);
     let (mut shift_start, mut shifts) = (vec![0u32], Vec::new());
-    for (vertex_slots, vertex_shifts) in per_vertex {
-        slots.extend(vertex_slots);
+    for vertex_shifts in per_vertex {
         shifts.extend(vertex_shifts);
         shift_start.push(shifts.len() as u32);
     }
@@ -68,39 +72,60 @@ fn check_frames(mesh: &Mesh, frames: &Frames, name: &str) -> Result<()> {
     Ok(())
 }
 
-/// The template of `v` resampled from its patch: each pixel takes the barycentric
-/// coordinates of the first patch face (in breadth-first order, so the least distorted)
-/// that contains it, or the default texton.
-fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize) -> Vec<Slot> {
+/// The template of `v` resampled from its patch into `slots` (all [`Slot::DEFAULT`]): each
+/// pixel takes the barycentric coordinates of the first patch face (in breadth-first
+/// order, so the least distorted) that contains it, or keeps the default texton.
+fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize, slots: &mut [Slot]) {
     let side = 2 * r + 1;
     let ri = r as i64;
-    let mut slots = vec![Slot::DEFAULT; side * side];
-    for &f in &patch.faces {
-        let Some(corners) = patch.corners(mesh, f) else { continue };
+    // A filled pixel names a vertex of its face; an empty one still names OUTSIDE.
+    let empty = |slot: &Slot| slot.vertices[0] == OUTSIDE;
+    let mut left = side * side;
+    for &(f, corners) in &patch.faces {
         // Corners in texel offsets: x along s, y down t.
         let offsets = corners.map(|c| Vec2::new(c.x / texel, -c.y / texel));
         let lo = offsets.iter().fold(Vec2::INFINITY, |m, &o| m.min(o));
         let hi = offsets.iter().fold(Vec2::NEG_INFINITY, |m, &o| m.max(o));
-        let (x0, x1) = ((lo.x.floor() as i64).max(-ri), (hi.x.ceil() as i64).min(ri));
-        let (y0, y1) = ((lo.y.floor() as i64).max(-ri), (hi.y.ceil() as i64).min(ri));
+        let (x0, x1) = (floor_to_i64(lo.x).max(-ri), ceil_to_i64(hi.x).min(ri));
+        let (y0, y1) = (floor_to_i64(lo.y).max(-ri), ceil_to_i64(hi.y).min(ri));
         for dy in y0..=y1 {
             for dx in x0..=x1 {
                 let i = ((dy + ri) as usize) * side + (dx + ri) as usize;
-                if slots[i] != Slot::DEFAULT {
+                if !empty(&slots[i]) {
                     continue;
                 }
                 let q = Vec2::new(dx as f32, dy as f32);
                 if let Some(weights) = barycentric(q, &offsets) {
                     slots[i] = slot(mesh.triangles()[f as usize], weights);
+                    left -= 1;
                 }
             }
         }
+        // Later faces only fill pixels still empty.
+        if left == 0 {
+            break;
+        }
     }
     // v sits at the centre even when no (non-degenerate) face around it does.
-    if slots[r * side + r] == Slot::DEFAULT {
+    if empty(&slots[r * side + r]) {
         slots[r * side + r] = Slot::at(v);
     }
-    slots
+}
+
+/// `x.floor() as i64` without a call into libm (the templates call it four times per
+/// patch face): the truncation is exact for every f32 that fits, and one lower where it
+/// rounded a negative fraction up. NaN gives 0 and the ends saturate, as `as` does.
+#[inline]
+fn floor_to_i64(x: f32) -> i64 {
+    let whole = x as i64;
+    whole.saturating_sub((whole as f32 > x) as i64)
+}
+
+/// `x.ceil() as i64` without a call into libm, as [`floor_to_i64`].
+#[inline]
+fn ceil_to_i64(x: f32) -> i64 {
+    let whole = x as i64;
+    whole.saturating_add(((whole as f32) < x) as i64)
 }
 
 /// The patch vertices inside the template's square with their offsets in texels (the
@@ -211,6 +236,26 @@ pub(crate) mod tests {
 
     fn interior(w: u32, h: u32, margin: u32) -> impl Iterator<Item = usize> {
         (margin..h - margin).flat_map(move |y| (margin..w - margin).map(move |x| (y * w + x) as usize))
+    }
+
+    #[test]
+    fn floor_and_ceil_agree_with_libm_everywhere() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let wholes = (-40..=40).map(|i| i as f32 * 0.5);
+        // The floats next to each half and whole in their bit patterns (a NaN beside 0).
+        let beside = wholes.clone().flat_map(|h| {
+            let bits = h.to_bits();
+            [f32::from_bits(bits.wrapping_sub(1)), f32::from_bits(bits.wrapping_add(1))]
+        });
+        let wide: Vec<f32> = (0..10_000).map(|_| rng.random_range(-3.0e19f32..3.0e19)).collect();
+        let narrow: Vec<f32> = (0..10_000).map(|_| rng.random_range(-20.0f32..20.0)).collect();
+        let odd =
+            [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 8_388_607.5, -8_388_607.5, 1e30, -1e30];
+        for x in wholes.chain(beside).chain(wide).chain(narrow).chain(odd) {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil_to_i64(x), x.ceil() as i64, "ceil {x}");
+        }
     }
 
     #[test]
