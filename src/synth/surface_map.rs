@@ -17,7 +17,7 @@ use crate::mesh::frames::Frames;
 use crate::mesh::ply::{self, PropertyData, VertexProperty};
 use crate::mesh::remesh::{edge_length_stats, remesh, EdgeLengthStats, RemeshParams};
 use crate::mesh::Mesh;
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -147,6 +147,9 @@ pub fn build_pyramid_cached(
     cache: Option<&CacheDir>,
     progress: &dyn Progress,
 ) -> Result<SurfacePyramid> {
+    if levels == 0 {
+        return Err(Error::invalid("a surface pyramid needs at least one level"));
+    }
     let texel = density.texel(mesh)?;
     let estimate = mesh.surface_area() / (3f64.sqrt() / 2.0 * (texel as f64).powi(2));
     if estimate > MAX_VERTICES as f64 {
@@ -156,33 +159,23 @@ pub fn build_pyramid_cached(
         ));
     }
     check_memory(estimate)?;
+    let input = PyramidInput { mesh, density, texel, orientation, params, cache };
+    // Each level is remeshed from the input on its own. The finest, four times the next,
+    // takes most of the time and little of its remeshing runs in parallel, so the coarser
+    // levels are remeshed and given their templates on the other core meanwhile (without
+    // a progress bar of their own: they end first).
+    let (finest, coarser) = rayon::join(|| input.level(0, progress), || input.coarser_levels(levels));
+    let mut built = vec![finest?];
+    built.extend(coarser?);
+    input.add_templates(&mut built, 0)?;
     let mut seconds = [0.0; 3];
-    let (mut meshes, mut sources) = (Vec::with_capacity(levels), Vec::with_capacity(levels));
-    for l in 0..levels {
-        let started = Instant::now();
-        let edge = texel * (1 << l) as f32;
-        // A vertex budget is steered towards as the remesher runs; a scale is a length.
-        let target = match density {
-            Density::Vertices(n) => RemeshParams::vertex_count(mesh, (n >> (2 * l)).max(4)),
-            _ => RemeshParams::edge_length(edge),
-        };
-        let (remeshed, source) = remeshed(cache, mesh, &target, || remesh(mesh, &target, progress))?;
-        let remeshed = remeshed.with_normals();
-        seconds[0] += started.elapsed().as_secs_f64();
-        let started = Instant::now();
-        let level_frames = frames(&remeshed, orientation, params.seed)?;
-        seconds[1] += started.elapsed().as_secs_f64();
-        let edges = edge_length_stats(&remeshed);
-        meshes.push(MeshLevel { mesh: remeshed, frames: level_frames, texel: edge, edges });
-        sources.push([source, Source::Computed]);
+    for b in &built {
+        (0..3).for_each(|k| seconds[k] += b.seconds[k]);
     }
+    let sources = built.iter().map(|b| b.sources).collect();
+    let (meshes, mut targets): (Vec<MeshLevel>, Vec<TargetLevel>) =
+        built.into_iter().map(|b| (b.level, b.target.expect("every level has its templates"))).unzip();
     let started = Instant::now();
-    let mut targets = Vec::with_capacity(levels);
-    for (l, level_sources) in sources.iter_mut().enumerate() {
-        let (target, source) = level_templates(&meshes, l, params.neighborhood, cache)?;
-        targets.push(target);
-        level_sources[1] = source;
-    }
     if params.preset.rounds() {
         // The expensive part of round neighbourhoods, once per level (Chen-Dong §4).
         let marchings = cache.map(|dir| MarchingCache::in_dir(dir.clone()));
@@ -192,37 +185,100 @@ pub fn build_pyramid_cached(
             target.round = Some(marched?);
         }
     }
-    seconds[2] = started.elapsed().as_secs_f64();
+    seconds[2] += started.elapsed().as_secs_f64();
     Ok(SurfacePyramid { levels: meshes, targets, seconds, sources })
 }
 
-/// Level `l`'s templates (side `template`) and, below the coarsest level, its links and
-/// parent templates, through `cache` where one is given.
-fn level_templates(
-    meshes: &[MeshLevel],
-    l: usize,
-    template: usize,
-    cache: Option<&CacheDir>,
-) -> Result<(TargetLevel, Source)> {
-    let (fine, coarse) = (&meshes[l], meshes.get(l + 1));
-    let parent_template = parent_size(template);
-    let key = templates_key(fine.shape(), template, coarse.map(|c| (c.shape(), parent_template)));
-    templates(cache, key, || {
-        let mut target = surface_level(&fine.mesh, &fine.frames, fine.texel, template)?;
-        if let Some(c) = coarse {
-            let coarse_templates = surface_level(&c.mesh, &c.frames, c.texel, parent_template)?;
-            link_levels(
-                &fine.mesh,
-                &fine.frames,
-                &mut target,
-                &c.mesh,
-                &c.frames,
-                coarse_templates,
-                fine.texel,
-            )?;
+/// What every level of one pyramid is built from.
+struct PyramidInput<'a> {
+    mesh: &'a Mesh,
+    density: Density,
+    /// The finest level's texel; each coarser level's is twice the one below.
+    texel: f32,
+    orientation: &'a Orientation,
+    params: &'a SynthParams,
+    cache: Option<&'a CacheDir>,
+}
+
+/// One level while the pyramid is built.
+struct BuiltLevel {
+    level: MeshLevel,
+    /// Its templates, once built.
+    target: Option<TargetLevel>,
+    /// Where its remeshing and its templates came from.
+    sources: [Source; 2],
+    /// Seconds remeshing, framing and building its templates took.
+    seconds: [f64; 3],
+}
+
+impl PyramidInput<'_> {
+    /// Level `l` remeshed, with its frames.
+    fn level(&self, l: usize, progress: &dyn Progress) -> Result<BuiltLevel> {
+        let started = Instant::now();
+        let edge = self.texel * (1 << l) as f32;
+        // A vertex budget is steered towards as the remesher runs; a scale is a length.
+        let target = match self.density {
+            Density::Vertices(n) => RemeshParams::vertex_count(self.mesh, (n >> (2 * l)).max(4)),
+            _ => RemeshParams::edge_length(edge),
+        };
+        let (remeshed, source) =
+            remeshed(self.cache, self.mesh, &target, || remesh(self.mesh, &target, progress))?;
+        let remeshed = remeshed.with_normals();
+        let remesh_seconds = started.elapsed().as_secs_f64();
+        let started = Instant::now();
+        let level_frames = frames(&remeshed, self.orientation, self.params.seed)?;
+        let frames_seconds = started.elapsed().as_secs_f64();
+        let edges = edge_length_stats(&remeshed);
+        Ok(BuiltLevel {
+            level: MeshLevel { mesh: remeshed, frames: level_frames, texel: edge, edges },
+            target: None,
+            sources: [source, Source::Computed],
+            seconds: [remesh_seconds, frames_seconds, 0.0],
+        })
+    }
+
+    /// Levels 1 to `levels − 1`, each with its templates.
+    fn coarser_levels(&self, levels: usize) -> Result<Vec<BuiltLevel>> {
+        let mut built = (1..levels).map(|l| self.level(l, &Silent)).collect::<Result<Vec<_>>>()?;
+        for l in 0..built.len() {
+            self.add_templates(&mut built, l)?;
         }
-        Ok(target)
-    })
+        Ok(built)
+    }
+
+    /// Gives `built[l]` its templates (the level after it is the next coarser, if any).
+    fn add_templates(&self, built: &mut [BuiltLevel], l: usize) -> Result<()> {
+        let started = Instant::now();
+        let (target, source) = self.templates(&built[l].level, built.get(l + 1).map(|b| &b.level))?;
+        built[l].seconds[2] = started.elapsed().as_secs_f64();
+        built[l].target = Some(target);
+        built[l].sources[1] = source;
+        Ok(())
+    }
+
+    /// The templates of level `fine` and, below the coarsest level, its links to `coarse`
+    /// and its parent templates, through the cache where one is given.
+    fn templates(&self, fine: &MeshLevel, coarse: Option<&MeshLevel>) -> Result<(TargetLevel, Source)> {
+        let template = self.params.neighborhood;
+        let parent_template = parent_size(template);
+        let key = templates_key(fine.shape(), template, coarse.map(|c| (c.shape(), parent_template)));
+        templates(self.cache, key, || {
+            let mut target = surface_level(&fine.mesh, &fine.frames, fine.texel, template)?;
+            if let Some(c) = coarse {
+                let coarse_templates = surface_level(&c.mesh, &c.frames, c.texel, parent_template)?;
+                link_levels(
+                    &fine.mesh,
+                    &fine.frames,
+                    &mut target,
+                    &c.mesh,
+                    &c.frames,
+                    coarse_templates,
+                    fine.texel,
+                )?;
+            }
+            Ok(target)
+        })
+    }
 }
 
 /// Synthesizes the surface texton map of `pyramid` from `sample`.
