@@ -81,7 +81,16 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize, slots: &mu
     // A filled pixel names a vertex of its face; an empty one still names OUTSIDE.
     let empty = |slot: &Slot| slot.vertices[0] == OUTSIDE;
     let mut left = side * side;
+    // Beyond this in s or t (a margin above r + 1 texels that covers the rounding of the
+    // division below), a corner's offset is at least r + 1 texels: a face with every
+    // corner beyond it on one side holds no pixel, and half the patch is such faces.
+    let beyond = (r + 1) as f32 * texel * (1.0 + 1e-5);
     for &(f, corners) in &patch.faces {
+        let (lo, hi) =
+            corners.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        if lo.x > beyond || hi.x < -beyond || lo.y > beyond || hi.y < -beyond {
+            continue;
+        }
         // Corners in texel offsets: x along s, y down t.
         let offsets = corners.map(|c| Vec2::new(c.x / texel, -c.y / texel));
         let lo = offsets.iter().fold(Vec2::INFINITY, |m, &o| m.min(o));
