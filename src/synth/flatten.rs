@@ -205,10 +205,17 @@ pub(super) fn flatten(
 
 /// Whether a flattened triangle may still reach into the template, so that its
 /// neighbours are worth flattening too.
+///
+/// The test is `nearest <= reach + longest` with every distance as `distance` rounds it,
+/// taken in fewer square roots: the longest edge is not needed where the nearest corner
+/// is within reach (reach plus a length is never less than reach), and the square root
+/// of the largest squared length is the largest of their square roots (it is monotone).
 fn within_reach(patch: &Patch, face: [u32; 3], corners: &[Vec2; 3], reach: f32) -> bool {
     let nearest = face.iter().map(|&c| patch.uv_length[c as usize]).fold(f32::INFINITY, f32::min);
-    let longest = (0..3).map(|k| corners[k].distance(corners[(k + 1) % 3])).fold(0.0, f32::max);
-    nearest <= reach + longest
+    nearest <= reach || {
+        let longest = (0..3).map(|k| corners[k].distance_squared(corners[(k + 1) % 3])).fold(0.0, f32::max);
+        nearest <= reach + longest.sqrt()
+    }
 }
 
 /// Whether face `f` may still reach into the template measured in space: a straight line
@@ -218,7 +225,8 @@ fn within_reach(patch: &Patch, face: [u32; 3], corners: &[Vec2; 3], reach: f32) 
 fn within_reach_in_space(mesh: &Mesh, topology: &Topology, f: u32, v: u32, reach: f32) -> bool {
     let p = mesh.positions();
     let t = mesh.triangles()[f as usize].map(|c| p[c as usize]);
-    let nearest = t.iter().map(|c| c.distance(p[v as usize])).fold(f32::INFINITY, f32::min);
+    // One square root, of the least squared distance: the least of the distances.
+    let nearest = t.iter().map(|c| c.distance_squared(p[v as usize])).fold(f32::INFINITY, f32::min).sqrt();
     nearest <= reach + topology.shapes[f as usize].longest
 }
 
