@@ -75,8 +75,11 @@ impl Topology {
             }
         }
         let p = mesh.positions();
-        let shapes = triangles.par_iter().map(|&t| FaceShape::of(p, t)).collect();
-        Topology { rings: one_rings(mesh), face_start, vertex_faces, across: across(triangles), shapes }
+        let ((rings, across), shapes) = rayon::join(
+            || rayon::join(|| one_rings(mesh), || across(triangles)),
+            || triangles.par_iter().map(|&t| FaceShape::of(p, t)).collect(),
+        );
+        Topology { rings, face_start, vertex_faces, across, shapes }
     }
 
     fn faces_of(&self, v: u32) -> &[u32] {
