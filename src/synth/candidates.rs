@@ -123,25 +123,31 @@ impl Coherence {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::round_to_i64;
     use rand::{Rng, SeedableRng};
 
-    #[test]
-    fn rounding_agrees_with_round_everywhere() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    /// Floats where rounding to an integer goes wrong first: halves and whole numbers with
+    /// their neighbours in bit pattern (a NaN and the least subnormal beside 0), random
+    /// values in ±600, beyond 2^23 and beyond i64's range, ±0, NaN, ±∞.
+    pub(crate) fn awkward_floats(seed: u64) -> Vec<f32> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let halves = (-40..=40).map(|i| i as f32 * 0.5);
-        let near_halves = (-40..=40).flat_map(|i| {
-            let h = i as f32 * 0.5;
-            // The floats next to h in its bit pattern (a NaN and the least subnormal for 0).
+        let beside = halves.clone().flat_map(|h| {
             let bits = h.to_bits();
             [f32::from_bits(bits.wrapping_sub(1)), f32::from_bits(bits.wrapping_add(1))]
         });
-        let wide: Vec<f32> = (0..10_000).map(|_| rng.random_range(-3.0e9f32..3.0e9)).collect();
-        let narrow: Vec<f32> = (0..10_000).map(|_| rng.random_range(-600.0f32..600.0)).collect();
+        let mut random =
+            |bound: f32| (0..10_000).map(|_| rng.random_range(-bound..bound)).collect::<Vec<f32>>();
+        let (narrow, wide, beyond_i64) = (random(600.0), random(3.0e9), random(3.0e19));
         let odd =
             [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 8_388_607.5, -8_388_607.5, 1e30, -1e30];
-        for t in halves.chain(near_halves).chain(wide).chain(narrow).chain(odd) {
+        halves.chain(beside).chain(narrow).chain(wide).chain(beyond_i64).chain(odd).collect()
+    }
+
+    #[test]
+    fn rounding_agrees_with_round_everywhere() {
+        for t in awkward_floats(3) {
             assert_eq!(round_to_i64(t), t.round() as i64, "{t}");
         }
     }

@@ -249,19 +249,7 @@ pub(crate) mod tests {
 
     #[test]
     fn floor_and_ceil_agree_with_libm_everywhere() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let wholes = (-40..=40).map(|i| i as f32 * 0.5);
-        // The floats next to each half and whole in their bit patterns (a NaN beside 0).
-        let beside = wholes.clone().flat_map(|h| {
-            let bits = h.to_bits();
-            [f32::from_bits(bits.wrapping_sub(1)), f32::from_bits(bits.wrapping_add(1))]
-        });
-        let wide: Vec<f32> = (0..10_000).map(|_| rng.random_range(-3.0e19f32..3.0e19)).collect();
-        let narrow: Vec<f32> = (0..10_000).map(|_| rng.random_range(-20.0f32..20.0)).collect();
-        let odd =
-            [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 8_388_607.5, -8_388_607.5, 1e30, -1e30];
-        for x in wholes.chain(beside).chain(wide).chain(narrow).chain(odd) {
+        for x in crate::synth::candidates::tests::awkward_floats(5) {
             assert_eq!(floor_to_i64(x), x.floor() as i64, "floor {x}");
             assert_eq!(ceil_to_i64(x), x.ceil() as i64, "ceil {x}");
         }
