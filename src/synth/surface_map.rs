@@ -89,7 +89,9 @@ pub struct SurfacePyramid {
     pub levels: Vec<MeshLevel>,
     /// The engine's levels, one per mesh level, finest first.
     pub targets: Vec<TargetLevel>,
-    /// Seconds spent remeshing, framing and building templates.
+    /// Seconds spent remeshing, framing and building templates, each summed over the
+    /// levels; the coarser levels' stages run beside the finest level's remeshing, so the
+    /// three may add up to more than the time the pyramid took.
     pub seconds: [f64; 3],
     /// Per level, where its remeshing and its templates came from (computed, or read from
     /// a cache).
