@@ -419,13 +419,17 @@ impl Scoring {
     fn around(mean: &[f64], points: &Points, k: usize, most: usize) -> Scoring {
         let long = points.d >= LONG_ROWS;
         let origin: Vec<f32> = mean.iter().map(|&m| if long { m as f32 } else { 0.0 }).collect();
-        let norms = (0..points.n)
-            .into_par_iter()
-            .map(|i| {
-                points.row(i).iter().zip(&origin).map(|(&x, &o)| ((x - o) as f64).powi(2)).sum::<f64>().sqrt()
-            })
-            .collect();
-        let bounds = Bounds::new(norms, points.d, k, if long { most } else { 0 });
+        let most = if long { most } else { 0 };
+        // The norms only size the lower bounds' margins: no bounds, no pass over the data.
+        let norm = |i: usize| {
+            points.row(i).iter().zip(&origin).map(|(&x, &o)| ((x - o) as f64).powi(2)).sum::<f64>()
+        };
+        let norms = if most > 0 {
+            (0..points.n).into_par_iter().map(|i| norm(i).sqrt()).collect()
+        } else {
+            vec![0.0; points.n]
+        };
+        let bounds = Bounds::new(norms, points.d, k, most);
         Scoring { mean: mean.to_vec(), bounds, origin, evaluated: 0 }
     }
 

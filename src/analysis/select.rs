@@ -87,9 +87,8 @@ fn response_coordinates(
     }
     let dot =
         |i: usize, j: usize| sampled[i].iter().zip(&sampled[j]).map(|(a, b)| (*a as f64) * (*b as f64)).sum();
-    let rows: Vec<Vec<f64>> = (0..r).into_par_iter().map(|i| (0..r).map(|j| dot(i, j)).collect()).collect();
-    let gram = Array2::from_shape_fn((r, r), |(i, j)| rows[i][j]);
-    let eigen = nalgebra::DMatrix::from_fn(r, r, |i, j| gram[[i, j]]).symmetric_eigen();
+    let gram: Vec<Vec<f64>> = (0..r).into_par_iter().map(|i| (0..r).map(|j| dot(i, j)).collect()).collect();
+    let eigen = nalgebra::DMatrix::from_fn(r, r, |i, j| gram[i][j]).symmetric_eigen();
     let root = &eigen.eigenvectors
         * nalgebra::DMatrix::from_diagonal(&eigen.eigenvalues.map(|v| v.max(0.0).sqrt()))
         * eigen.eigenvectors.transpose();
