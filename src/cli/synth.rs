@@ -26,7 +26,7 @@ enum SearchKind {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum DeviceKind {
-    /// A hardware GPU where the machine has one, else the CPU.
+    /// A hardware GPU where the machine has one (full searches excepted), else the CPU.
     Auto,
     /// The CPU.
     Cpu,
@@ -117,7 +117,8 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Where the passes run: auto (a hardware GPU where there is one; software adapters
-    /// such as lavapipe are slower than the CPU and not used), cpu, or gpu (any wgpu
+    /// such as lavapipe are slower than the CPU and not used, and so is the GPU for --search
+    /// full, which the CPU runs faster), cpu, or gpu (any wgpu
     /// adapter; an error where there is none; WGPU_BACKEND=vulkan|gl picks the backend).
     /// The result is the same byte for byte. Passes without a GPU form (all but the
     /// interleaved square-template passes of appearance and tong2002 on a plane) run on the

@@ -3,10 +3,11 @@
 //! square-template passes on a plane, see [`super::gpu`]) and gives the CPU's coordinates to
 //! the bit; every other pass runs on the CPU, and each level's report says which ran where.
 
+use super::candidates::Search;
 use super::engine::{PassStats, State};
 use super::job::PassJob;
 use super::neighbourhood::Neighbourhood;
-use super::recipe::{Preset, VisitOrder};
+use super::recipe::{pass_search, Preset, VisitOrder};
 use super::target::{Neighbourhoods, TargetLevel};
 use crate::Result;
 
@@ -14,7 +15,8 @@ use crate::Result;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Device {
     /// On a GPU where the machine has a hardware adapter; on the CPU where it has none, or
-    /// only a software one (Mesa's lavapipe or llvmpipe, slower than the CPU path).
+    /// only a software one (Mesa's lavapipe or llvmpipe, slower than the CPU path), and for
+    /// full-search passes, which the CPU runs faster.
     #[default]
     Auto,
     /// On the CPU.
@@ -23,18 +25,38 @@ pub enum Device {
     Gpu,
 }
 
-/// Whether any pass of `preset` on `targets` may have a GPU form: a plane level and an
-/// interleaved square-template pass.
-pub(crate) fn may_use_gpu(targets: &[TargetLevel], preset: &Preset) -> bool {
+/// Why [`Device::Auto`] leaves a GPU closed for `preset` on `targets` with `search` asked,
+/// if it does: no pass has a GPU form (a plane level and an interleaved square-template
+/// pass), or every pass that has one runs a full search, which is the CPU's to run
+/// ([`AUTO_FULL_SEARCH`]).
+pub(crate) fn why_auto_keeps_the_cpu(
+    targets: &[TargetLevel],
+    preset: &Preset,
+    search: Search,
+) -> Option<&'static str> {
     let plane = targets.iter().any(|t| matches!(t.neighbourhoods, Neighbourhoods::Grid { .. }));
-    let pass = preset.all_passes().any(|p| {
+    let mut passes = preset.all_passes().filter(|p| {
         p.order == VisitOrder::Interleaved && matches!(p.neighbourhood, Neighbourhood::Square { .. })
     });
-    plane && pass
+    let first = passes.next();
+    if !plane || first.is_none() {
+        return Some("no pass has a GPU form");
+    }
+    let full = |p: &super::recipe::Pass| pass_search(p, search) == Search::Full;
+    (first.is_some_and(full) && passes.all(full)).then_some(AUTO_FULL_SEARCH)
 }
+
+/// Why [`Device::Auto`] runs full-search passes on the CPU: the GPU form gives each vertex
+/// one invocation that scores every candidate texel in turn, so a sub-pass fills few of a
+/// GPU's cores. A 128² plane with a full search took 34 s on an NVIDIA H200 and 3.8 s on
+/// its host's 16 cores (docs/speed.md).
+const AUTO_FULL_SEARCH: &str = "a full search, which the CPU runs faster";
 
 /// Runs the passes that can run on the GPU there, and counts per level which ran where.
 pub(crate) struct Runner {
+    /// Whether the GPU was chosen by [`Device::Auto`] (which leaves full searches to the CPU).
+    #[cfg(feature = "gpu")]
+    auto: bool,
     /// Why no GPU is open, for the reports ("" under [`Device::Cpu`], which asked for none).
     why_no_gpu: String,
     #[cfg(feature = "gpu")]
@@ -46,11 +68,11 @@ pub(crate) struct Runner {
 
 impl Runner {
     /// Opens the GPU `device` asks for: [`Device::Gpu`] always (failing with one line where
-    /// wgpu finds no adapter), [`Device::Auto`] where `wanted` (some pass may run there)
-    /// and the machine has a hardware adapter.
-    pub(crate) fn open(device: Device, wanted: bool) -> Result<Runner> {
+    /// wgpu finds no adapter), [`Device::Auto`] where nothing keeps it on the CPU (`keep`,
+    /// from [`why_auto_keeps_the_cpu`]) and the machine has a hardware adapter.
+    pub(crate) fn open(device: Device, keep: Option<&'static str>) -> Result<Runner> {
         #[cfg(feature = "gpu")]
-        let (gpu, why_no_gpu) = open_gpu(device, wanted)?;
+        let (gpu, why_no_gpu) = open_gpu(device, keep)?;
         #[cfg(not(feature = "gpu"))]
         let why_no_gpu = match device {
             Device::Gpu => {
@@ -62,8 +84,10 @@ impl Runner {
             Device::Cpu => String::new(),
         };
         #[cfg(not(feature = "gpu"))]
-        let _ = wanted;
+        let _ = keep;
         Ok(Runner {
+            #[cfg(feature = "gpu")]
+            auto: device == Device::Auto,
             why_no_gpu,
             #[cfg(feature = "gpu")]
             gpu,
@@ -73,12 +97,16 @@ impl Runner {
         })
     }
 
-    /// Runs `job` on the GPU if one is open and the pass has a GPU form there, updating
-    /// `state`; `None` if it is the CPU's to run.
+    /// Runs `job` on the GPU if one is open and the pass has a GPU form there (and, under
+    /// [`Device::Auto`], is no full search), updating `state`; `None` if it is the CPU's.
     pub(crate) fn pass(&mut self, job: &PassJob, state: &mut State) -> Result<Option<PassStats>> {
         #[cfg(feature = "gpu")]
         if let Some(gpu) = &mut self.gpu {
-            match gpu.run(job, state)? {
+            let ran = match self.auto && job.search == Search::Full {
+                true => Err(AUTO_FULL_SEARCH.to_string()),
+                false => gpu.run(job, state)?.map_err(|why| format!("no GPU form: {why}")),
+            };
+            match ran {
                 Ok(stats) => {
                     self.on_gpu += 1;
                     return Ok(Some(stats));
@@ -99,14 +127,13 @@ impl Runner {
         let (on_gpu, on_cpu, why) = (self.on_gpu, self.on_cpu, self.why_cpu.take());
         (self.on_gpu, self.on_cpu) = (0, 0);
         let name = self.gpu_name();
+        let why = why.unwrap_or_default();
         match (name, on_gpu, on_cpu) {
             (Some(name), g, 0) if g > 0 => format!("gpu ({name})"),
-            (Some(_), 0, _) => format!("cpu (no GPU form: {})", why.unwrap_or_default()),
-            (Some(name), g, c) => format!(
-                "gpu ({name}) for {g} of {} passes, cpu for the others (no GPU form: {})",
-                g + c,
-                why.unwrap_or_default()
-            ),
+            (Some(_), 0, _) => format!("cpu ({why})"),
+            (Some(name), g, c) => {
+                format!("gpu ({name}) for {g} of {} passes, cpu for the others ({why})", g + c)
+            }
             (None, _, _) if self.why_no_gpu.is_empty() => "cpu".into(),
             (None, _, _) => format!("cpu ({})", self.why_no_gpu),
         }
@@ -124,21 +151,45 @@ impl Runner {
 /// The GPU `device` asks for (see [`Runner::open`]), or why there is none ("" under
 /// [`Device::Cpu`]).
 #[cfg(feature = "gpu")]
-fn open_gpu(device: Device, wanted: bool) -> Result<(Option<super::gpu::GpuSynth>, String)> {
+fn open_gpu(device: Device, keep: Option<&'static str>) -> Result<(Option<super::gpu::GpuSynth>, String)> {
     use super::gpu::{hardware_adapter, GpuSynth};
     Ok(match device {
         Device::Cpu => (None, String::new()),
         Device::Gpu => (Some(GpuSynth::new()?), String::new()),
-        Device::Auto if !wanted => (None, "no pass has a GPU form".into()),
-        Device::Auto if !hardware_adapter() => (None, "no hardware GPU adapter".into()),
-        // A GPU that is there but does not open is no reason to fail: the CPU gives the same
-        // bytes.
-        Device::Auto => match GpuSynth::new() {
-            Ok(gpu) => (Some(gpu), String::new()),
-            Err(e) => {
-                tracing::warn!("synthesizing on the CPU: {e}");
-                (None, format!("the GPU did not open: {e}"))
-            }
+        Device::Auto => match keep {
+            Some(why) => (None, why.into()),
+            None if !hardware_adapter() => (None, "no hardware GPU adapter".into()),
+            // A GPU that is there but does not open is no reason to fail: the CPU gives the
+            // same bytes.
+            None => match GpuSynth::new() {
+                Ok(gpu) => (Some(gpu), String::new()),
+                Err(e) => {
+                    tracing::warn!("synthesizing on the CPU: {e}");
+                    (None, format!("the GPU did not open: {e}"))
+                }
+            },
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::target::grid_levels;
+
+    /// On a plane, `auto` may open a GPU for the presets with a GPU form (`appearance` and
+    /// `tong2002`) under k-coherence, and keeps the CPU for a full search and for the others.
+    #[test]
+    fn auto_keeps_the_cpu_for_full_searches_and_presets_without_a_gpu_form() {
+        let plane = grid_levels(32, 32, 2, 5, 3);
+        for preset in Preset::all() {
+            let has_form = ["appearance", "tong2002"].contains(&preset.name.as_str());
+            let k = why_auto_keeps_the_cpu(&plane, &preset, Search::KCoherence { k: 11 });
+            let full = why_auto_keeps_the_cpu(&plane, &preset, Search::Full);
+            match has_form {
+                true => assert_eq!((k, full), (None, Some(AUTO_FULL_SEARCH)), "{}", preset.name),
+                false => assert_eq!(k, Some("no pass has a GPU form"), "{}", preset.name),
+            }
+        }
+    }
 }

@@ -147,7 +147,8 @@ pub fn synthesize(
     progress.start("synthesizing", preset.pass_count(targets.len()) as u64);
     let r = params.neighborhood / 2;
     let mut reports = Vec::new();
-    let mut runner = device::Runner::open(params.device, device::may_use_gpu(targets, preset))?;
+    let mut runner =
+        device::Runner::open(params.device, device::why_auto_keeps_the_cpu(targets, preset, params.search))?;
     let mut state: Option<State> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;

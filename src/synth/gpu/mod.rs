@@ -6,8 +6,9 @@
 //! and ties, the random draw of a vertex without candidates computed on the CPU from the
 //! same seed), so a pass leaves the CPU's coordinates to the bit, and its statistics too.
 //!
-//! A sub-pass is a few dispatches over its vertices (in parts of at most `CHUNK` = 4096
-//! vertices): one gathers each vertex's candidates, then each of a few scores a batch of them (Mesa's
+//! A sub-pass is a few dispatches over its vertices (in parts that share one scratch buffer:
+//! 4,096 vertices on a software adapter, as many as 512 MiB hold on a hardware one, so that
+//! a large GPU is not left mostly idle by small dispatches): one gathers each vertex's candidates, then each of a few scores a batch of them (Mesa's
 //! llvmpipe ends an invocation's loops after 65535 iterations in all, `LOOP_BUDGET`), one
 //! lets each vertex take its winner, and one moves the choosy use counts. One pass is one
 //! command buffer: the state goes up before it and comes back after.
@@ -45,9 +46,15 @@ const MAX_ENTRIES: usize = 640;
 /// Scratch words per invocation (the shader's `STRIDE`: table, list, count and best).
 const STRIDE: usize = 2 * 1024 + MAX_ENTRIES + 5;
 
-/// Vertices matched per dispatch: a sub-pass larger than this is dispatched in parts (they
-/// share the scratch, `CHUNK` × `STRIDE` × 4 bytes).
-const CHUNK: usize = 4096;
+/// Vertices matched per dispatch on a software adapter: a sub-pass larger than this is
+/// dispatched in parts (they share the scratch, `STRIDE` × 4 bytes per vertex). Lavapipe
+/// runs on the CPU's few cores, where larger dispatches gain nothing but host memory.
+const SOFTWARE_CHUNK: usize = 4096;
+
+/// The scratch one dispatch may take on a hardware adapter (about 49,000 vertices): on a
+/// large GPU, 4,096 vertices fill a few of its cores, and a 1024² plane's sub-pass took 29
+/// parts where 3 do.
+const HARDWARE_SCRATCH: u64 = 512 << 20;
 
 /// Loop iterations one score dispatch may spend per invocation: Mesa's llvmpipe (lavapipe)
 /// ends every loop of an invocation once they have run 65535 iterations in all
@@ -333,6 +340,8 @@ pub struct GpuSynth {
     /// The shader's entry points: gather, score, finish, apply_counts.
     pipelines: [wgpu::ComputePipeline; 4],
     level: Option<LevelBuffers>,
+    /// Vertices matched per dispatch ([`chunk_of`]).
+    chunk: usize,
     /// The last dispatch's stamp (each marks its candidate tables' slots as its own).
     stamp: u32,
 }
@@ -366,7 +375,8 @@ impl GpuSynth {
             };
             Ok((layout, ["gather", "score", "finish", "apply_counts"].map(pipeline)))
         })?;
-        Ok(GpuSynth { gpu, layout, pipelines, level: None, stamp: 0 })
+        let chunk = chunk_of(&gpu.adapter.get_info(), &gpu.device.limits());
+        Ok(GpuSynth { gpu, layout, pipelines, level: None, chunk, stamp: 0 })
     }
 
     /// The adapter's name and backend.
@@ -391,7 +401,7 @@ impl GpuSynth {
             other => {
                 // The last level's buffers go before this one's are made.
                 drop(other);
-                let plan = plan_level(job, &form, key);
+                let plan = plan_level(job, &form, key, self.chunk);
                 if let Err(why) = fits(&self.gpu.device.limits(), &plan) {
                     return Ok(Err(why));
                 }
@@ -564,7 +574,7 @@ struct LevelPlan {
 }
 
 /// The tables, parts and batches of `job`'s level under `form`.
-fn plan_level(job: &PassJob, form: &Form, key: LevelKey) -> LevelPlan {
+fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelPlan {
     let (target, sample) = (job.target, job.sample);
     let mut tables = Vec::new();
     let lists = match form.parent {
@@ -598,13 +608,13 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey) -> LevelPlan {
     base.metric = u32::from(form.metric != SquareMetric::Gamma);
     base.dims = map_of(sample, form.metric).map_or(0, |m| m.dims as u32);
     let (batch, batches) = batching(job, form, base.dims as usize);
-    let widest = form.colouring.classes.iter().map(Vec::len).max().unwrap_or(0).min(CHUNK);
+    let widest = form.colouring.classes.iter().map(Vec::len).max().unwrap_or(0).min(chunk);
     LevelPlan {
         key,
         tables,
         coarse,
         base,
-        parts: parts_of(form.colouring),
+        parts: parts_of(form.colouring, chunk),
         batch,
         batches,
         vertices: target.vertices,
@@ -613,13 +623,25 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey) -> LevelPlan {
     }
 }
 
-/// The sub-passes' parts of at most [`CHUNK`] vertices: (class, offset in the concatenated
+/// Vertices matched per dispatch on `info`'s adapter: [`SOFTWARE_CHUNK`] on a CPU one, else
+/// as many as [`HARDWARE_SCRATCH`] holds within `limits`, in whole workgroups. Each
+/// sub-pass's vertices are independent, so the parts give the same result at any size.
+fn chunk_of(info: &wgpu::AdapterInfo, limits: &wgpu::Limits) -> usize {
+    if info.device_type == wgpu::DeviceType::Cpu {
+        return SOFTWARE_CHUNK;
+    }
+    let bytes = HARDWARE_SCRATCH.min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    let vertices = (bytes / (STRIDE as u64 * 4)) as usize;
+    (vertices / GROUP as usize * GROUP as usize).max(GROUP as usize)
+}
+
+/// The sub-passes' parts of at most `chunk` vertices: (class, offset in the concatenated
 /// classes, vertices).
-fn parts_of(colouring: &Colouring) -> Vec<(usize, u32, u32)> {
+fn parts_of(colouring: &Colouring, chunk: usize) -> Vec<(usize, u32, u32)> {
     let mut parts = Vec::new();
     let mut offset = 0u32;
     for (c, class) in colouring.classes.iter().enumerate() {
-        for part in class.chunks(CHUNK) {
+        for part in class.chunks(chunk) {
             parts.push((c, offset, part.len() as u32));
             offset += part.len() as u32;
         }
