@@ -1,5 +1,6 @@
-// One sub-pass of an interleaved square-template correction pass on a plane (src/synth/gpu):
-// one invocation per grid vertex of the sub-pass's colour. It gathers the vertex's candidates
+// One sub-pass of an interleaved square-template correction pass on a plane or a mesh
+// (src/synth/gpu): one invocation per vertex of the sub-pass's colour. It gathers the
+// vertex's candidates
 // (k-coherence, or every candidate texel) as src/synth/candidates.rs does, scores them with
 // the pass's metric as src/synth/metric.rs and src/synth/square_pass.rs do, in the same
 // order, with the same early exits, and keeps the same winner: the CPU's coordinates to the
@@ -11,6 +12,10 @@
 //   rounded to nearest even, since WGSL's `/` may be off by 2.5 ulp;
 // - everything else is +, −, × and comparisons, which WGSL rounds exactly.
 //
+// A plane's templates and forward shifts are its grid around the vertex; a mesh's are read
+// from tables: each template pixel's vertices and weights (as metric::known_parts leaves
+// them, normalised on the CPU), and each vertex's patch vertices with their offsets.
+//
 // A sub-pass is four entry points, dispatched in turn over its vertices: `gather` (the
 // candidate list), `score` (repeatedly: at most `P.batch` candidates per vertex each time,
 // resuming from the best so far; Mesa's llvmpipe ends every loop of a shader invocation
@@ -19,16 +24,15 @@
 // choosy use counts move, once every vertex of the sub-pass has chosen).
 
 const PAD: i32 = 8;              // AppearanceMap::PAD
-const CAP_BITS: u32 = 10u;
-const CAP: u32 = 1024u;          // slots of an invocation's candidate table (2^CAP_BITS)
-const MAX_ENTRIES: u32 = 640u;   // candidates an invocation's list holds
-const STRIDE: u32 = 2693u;       // scratch words per invocation: 2 CAP + MAX_ENTRIES + 5
 const KEY: u32 = 0x1fffffffu;    // texel + 1 in a slot
 const LISTED: u32 = 0x20000000u; // a shift pixel whose list was gathered
 const CANDIDATE: u32 = 0x40000000u;
 const SHIFT: u32 = 0x80000000u;  // a forward shift of the vertex (continues a copy)
 const CONTINUES: u32 = 0x80000000u; // on a listed candidate: it continues a copy
 const NONE: u32 = 0xffffffffu;
+const OUTSIDE: u32 = 0xffffffffu; // a mesh pixel's vertex outside the patch (its value is 0)
+const SKIP: u32 = 0xfffffffeu;    // a mesh pixel not compared
+const SLOT_WORDS: u32 = 6u;      // a mesh pixel: three vertices, three weights
 
 struct Params {
     // The target grid.
@@ -47,8 +51,13 @@ struct Params {
     // Word offsets in `pass_data`; this dispatch's vertices.
     off_draws: u32, off_table: u32, class_offset: u32, class_count: u32,
     groups_x: u32, full_count: u32, stamp: u32, off_full: u32,
-    // Candidates a score dispatch takes per vertex.
-    batch: u32, _pad0: u32, _pad1: u32, _pad2: u32,
+    // Candidates a score dispatch takes per vertex; on a mesh (mesh = 1) the word offsets
+    // of the level's pixel tables, the parent's, and the forward shifts (CSR).
+    batch: u32, mesh: u32, off_slots: u32, off_p_slots: u32,
+    off_shift_start: u32, off_shifts: u32,
+    // An invocation's candidate table (2^cap_bits slots) and list (entries words), and its
+    // scratch words in all (2 · 2^cap_bits + entries + 5).
+    cap_bits: u32, entries: u32, stride: u32, _pad0: u32, _pad1: u32, _pad2: u32,
 }
 
 // A score dispatch's candidates: [start, start + P.batch) of each vertex's.
@@ -68,8 +77,8 @@ struct Batch {
 @group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
 // Per vertex: best distance (bits), candidates compared, old texel, new texel (or NONE).
 @group(0) @binding(6) var<storage, read_write> outs: array<u32>;
-// Per invocation of a dispatch, STRIDE words: its candidate table (2 CAP: see find_slot),
-// its candidate list (MAX_ENTRIES), its count, whether the list is the full one, and the
+// Per invocation of a dispatch, P.stride words: its candidate table (two words per slot: see
+// find_slot), its candidate list (P.entries), its count, whether the list is the full one, and the
 // best so far (found, distance bits, texel).
 @group(0) @binding(7) var<storage, read_write> scratch: array<u32>;
 @group(0) @binding(8) var<uniform> B: Batch;
@@ -234,6 +243,7 @@ struct Window {
     side: u32,
     grid: vec3<u32>,     // width, height, wraps
     coarse: bool,        // read from `coarse` (the parent level) rather than `state`
+    slots: u32,          // on a mesh: the word offset of the vertex's pixels; NONE on a plane
 }
 
 struct Level {
@@ -245,6 +255,9 @@ struct Level {
 }
 
 fn cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
+    if (win.slots != NONE) {
+        return mesh_cost(win, lv, x, y, bounded, bound);
+    }
     let t = win.side;
     let r = i32(t / 2u);
     let cx = win.centre % i32(win.grid.x);
@@ -294,17 +307,68 @@ fn cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f3
     return d;
 }
 
-// The candidate table of this invocation: CAP slots of (stamp, texel + 1 | flags) in
+// The packed coordinate of vertex u on the window's level.
+fn packed_of(u: u32, on_coarse: bool) -> u32 {
+    if (on_coarse) {
+        return coarse[2u * u];
+    }
+    return state[2u * u];
+}
+
+// Value j of part `a` of the mesh pixel at `slot` (weight × the vector at its vertex's
+// coordinate), or 0 for a part outside the patch.
+fn part(slot: u32, a: u32, j: u32, lv: Level, on_coarse: bool) -> f32 {
+    let u = tables[slot + a];
+    if (u == OUTSIDE) {
+        return 0.0;
+    }
+    let packed = packed_of(u, on_coarse);
+    let m = lv.map + map_index(i32(packed & 0xffffu), i32(packed >> 16u), lv.stride);
+    return opaque(f(tables[slot + 3u + a]) * f(tables[m + j]));
+}
+
+// `cost` on a mesh (appearance or colour SSD): each compared pixel's vector is the blend of
+// its vertices' vectors, AppearanceMetric::prepare's sum in its order (the parts unrolled:
+// llvmpipe counts loop iterations).
+fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
+    let t = win.side;
+    let r = i32(t / 2u);
+    var d = 0.0;
+    let base = lv.map + map_index(x, y, lv.stride);
+    for (var i = 0u; i < t * t; i = i + 1u) {
+        let slot = win.slots + SLOT_WORDS * i;
+        if (tables[slot] == SKIP) {
+            continue;
+        }
+        let dx = i32(i % t) - r;
+        let dy = i32(i / t) - r;
+        let o = base + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
+        var s = 0.0;
+        for (var j = 0u; j < P.dims; j = j + 1u) {
+            let q = ((0.0 + part(slot, 0u, j, lv, win.coarse)) + part(slot, 1u, j, lv, win.coarse))
+                + part(slot, 2u, j, lv, win.coarse);
+            let e = f(tables[o + j]) - q;
+            s = s + opaque(e * e);
+        }
+        d = d + s;
+        if (bounded && d > bound) {
+            break;
+        }
+    }
+    return d;
+}
+
+// The candidate table of this invocation: 2^P.cap_bits slots of (stamp, texel + 1 | flags) in
 // `scratch` from `base`, open addressing; a slot whose stamp is not this sub-pass part's is
 // empty, so the table needs no clearing.
 fn find_slot(base: u32, q: u32) -> u32 {
-    var h = (q * 2654435761u) >> (32u - CAP_BITS);
+    var h = (q * 2654435761u) >> (32u - P.cap_bits);
     loop {
         let at = base + 2u * h;
         if (scratch[at] != P.stamp || (scratch[at + 1u] & KEY) == q + 1u) {
             return at;
         }
-        h = (h + 1u) & (CAP - 1u);
+        h = (h + 1u) & ((1u << P.cap_bits) - 1u);
     }
     return 0u;
 }
@@ -389,6 +453,42 @@ fn shift_pixel(vx: i32, vy: i32, k: u32) -> u32 {
     return candidate_pixel(x, y);
 }
 
+// candidates::round_to_i64: to nearest, halves away from zero.
+fn round_away(t: f32) -> i32 {
+    let whole = i32(t);
+    let fraction = t - f32(whole);
+    return whole + select(0, 1, fraction >= 0.5) - select(0, 1, fraction <= -0.5);
+}
+
+// Forward shift k of mesh vertex v (its k-th patch vertex's coordinate moved back by the
+// offset), as a candidate texel, or NONE (not on a candidate texel).
+fn mesh_shift_pixel(v: u32, k: u32) -> u32 {
+    let e = P.off_shifts + 3u * (tables[P.off_shift_start + v] + k);
+    let su = state[2u * tables[e]];
+    let x = round_away(f32(su & 0xffffu) - f(tables[e + 1u]));
+    let y = round_away(f32(su >> 16u) - f(tables[e + 2u]));
+    if (!is_candidate(x, y)) {
+        return NONE;
+    }
+    return candidate_pixel(x, y);
+}
+
+// Shift k of vertex v (a window pixel on a plane, a patch vertex on a mesh), or NONE.
+fn shift_of(v: u32, k: u32) -> u32 {
+    if (P.mesh != 0u) {
+        return mesh_shift_pixel(v, k);
+    }
+    return shift_pixel(i32(v % P.grid_w), i32(v / P.grid_w), k);
+}
+
+// How many shifts vertex v has (some may be NONE).
+fn shift_count(v: u32) -> u32 {
+    if (P.mesh != 0u) {
+        return tables[P.off_shift_start + v + 1u] - tables[P.off_shift_start + v];
+    }
+    return P.side * P.side;
+}
+
 // This invocation's index in its dispatch, or NONE past the dispatch's vertices.
 fn index_of(gid: vec3<u32>) -> u32 {
     let i = gid.x + gid.y * P.groups_x * 64u;
@@ -406,13 +506,13 @@ fn current_of(v: u32) -> u32 {
 
 // Scratch layout of invocation i.
 fn table_base(i: u32) -> u32 {
-    return i * STRIDE;
+    return i * P.stride;
 }
 fn list_base(i: u32) -> u32 {
-    return i * STRIDE + 2u * CAP;
+    return i * P.stride + (2u << P.cap_bits);
 }
 fn meta_base(i: u32) -> u32 {
-    return i * STRIDE + 2u * CAP + MAX_ENTRIES;
+    return i * P.stride + (2u << P.cap_bits) + P.entries;
 }
 
 // The vertex's forward shifts (Coherence::gather): each window vertex's coordinate shifted
@@ -428,12 +528,10 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = vertex_of(i);
     let base = table_base(i);
     let list = list_base(i);
-    let t = P.side;
-    let vx = i32(v % P.grid_w);
-    let vy = i32(v / P.grid_w);
+    let n = shift_count(v);
     var shifts = 0u;
-    for (var k = 0u; k < t * t; k = k + 1u) {
-        let p = shift_pixel(vx, vy, k);
+    for (var k = 0u; k < n; k = k + 1u) {
+        let p = shift_of(v, k);
         if (p == NONE) {
             continue;
         }
@@ -450,8 +548,8 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
         full = select(0u, 1u, count > 0u);
     } else if (shifts > 0u) {
         // A shift that lands where an earlier one did adds nothing new.
-        for (var k = 0u; k < t * t; k = k + 1u) {
-            let p = shift_pixel(vx, vy, k);
+        for (var k = 0u; k < n; k = k + 1u) {
+            let p = shift_of(v, k);
             if (p == NONE) {
                 continue;
             }
@@ -503,10 +601,17 @@ fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let v = vertex_of(i);
     let current = current_of(v);
-    let own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false);
+    var own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false, NONE);
+    if (P.mesh != 0u) {
+        own.slots = P.off_slots + v * P.side * P.side * SLOT_WORDS;
+    }
     var up = own;
     if (P.parent != 0u) {
-        up = Window(i32(tables[P.off_parents + v]), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true);
+        let pv = tables[P.off_parents + v];
+        up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE);
+        if (P.mesh != 0u) {
+            up.slots = P.off_p_slots + pv * P.p_side * P.p_side * SLOT_WORDS;
+        }
     }
     let full = scratch[info + 1u] != 0u;
     var best = Best(scratch[info + 2u] != 0u, f(scratch[info + 3u]), scratch[info + 4u]);

@@ -1,7 +1,8 @@
 //! Synthesis passes on the GPU (`synth --device gpu`, `src/synth/gpu`): the same coordinates
 //! as the CPU for a seed, byte for byte, on every level of the presets whose passes have a
-//! GPU form (`appearance`, `tong2002` on planes), and on a recipe that reaches the other
-//! branches of the shader (colour metric, wide parent template, argmin, full search).
+//! GPU form (`appearance`, `tong2002` on planes, `appearance` on meshes), and on a recipe
+//! that reaches the other branches of the shader (colour metric, wide parent template,
+//! argmin, full search).
 //!
 //! The comparisons need a wgpu adapter (Mesa's lavapipe is enough, and slow: the sizes here
 //! are small). Without one each prints one line and passes, unless `BTFSYNTH_REQUIRE_GPU=1`
@@ -218,28 +219,47 @@ fn synth_device_auto_without_a_hardware_adapter_runs_on_the_cpu_and_says_so() {
     assert!(cpu_devices.iter().all(|d| d == "cpu"), "{cpu_devices:?}");
 }
 
-/// A mesh has no GPU form: under `--device gpu` its levels run on the CPU, and the report
-/// says so and why.
+/// On a mesh, `appearance` (appearance SSD over blended template pixels, forward shifts
+/// from stored patch vertices) runs on the GPU and writes the CPU's PLY byte for byte;
+/// `tong2002`'s Γ has no mesh form, so its levels run on the CPU and the report says why.
 #[test]
-fn synth_device_gpu_on_a_mesh_runs_on_the_cpu_and_says_why() {
-    const TEST: &str = "synth_device_gpu_on_a_mesh_runs_on_the_cpu_and_says_why";
+fn synth_device_gpu_on_a_mesh_writes_the_cpus_bytes_where_the_passes_have_a_gpu_form() {
+    const TEST: &str = "synth_device_gpu_on_a_mesh_writes_the_cpus_bytes_where_the_passes_have_a_gpu_form";
     if btfsynth::testdata::gpu_skipped(TEST) {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let analysis = common::analyze_gravel_crop(dir.path(), "gravel");
-    let (out, report) = (dir.path().join("bunny.ply"), dir.path().join("bunny.json"));
-    let args =
-        ["-q", "synth", analysis.to_str().unwrap(), common::BUNNY, "--vertices", "3000", "--device", "gpu"];
-    let paths = ["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()];
-    let r = common::btfsynth(&[&args[..], &paths].concat());
-    let stderr = String::from_utf8_lossy(&r.stderr);
-    if !r.status.success() && btfsynth::testdata::gpu_missing(TEST, &stderr) {
-        return;
-    }
-    assert!(r.status.success(), "{stderr}");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
-    for level in report["levels"].as_array().unwrap() {
-        assert_eq!(level["device"], "cpu (no GPU form: a mesh level)", "{level}");
+    let analysis = common::analyze_gravel(dir.path(), "gravel", "0,0,48,48");
+    let run = |preset: &str, device: &str| {
+        let out = dir.path().join(format!("{preset}-{device}.ply"));
+        let report = dir.path().join(format!("{preset}-{device}.json"));
+        let args = ["-q", "synth", analysis.to_str().unwrap(), common::BUNNY, "--vertices", "900"];
+        let more = ["--preset", preset, "--seed", "2", "--device", device];
+        let paths = ["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()];
+        let r = common::btfsynth(&[&args[..], &more, &paths].concat());
+        (r, out, report)
+    };
+    for (preset, on_gpu) in [("appearance", true), ("tong2002", false)] {
+        let (cpu, cpu_out, _) = run(preset, "cpu");
+        assert!(cpu.status.success(), "{}", String::from_utf8_lossy(&cpu.stderr));
+        let (gpu, gpu_out, report) = run(preset, "gpu");
+        let stderr = String::from_utf8_lossy(&gpu.stderr);
+        if !gpu.status.success() && btfsynth::testdata::gpu_missing(TEST, &stderr) {
+            return;
+        }
+        assert!(gpu.status.success(), "{stderr}");
+        assert!(
+            std::fs::read(cpu_out).unwrap() == std::fs::read(gpu_out).unwrap(),
+            "{preset}: the PLYs differ"
+        );
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
+        for level in report["levels"].as_array().unwrap() {
+            let on = level["device"].as_str().unwrap();
+            match on_gpu {
+                true => assert!(on.starts_with("gpu (") && !on.contains("cpu"), "{preset}: {on}"),
+                false => assert_eq!(on, "cpu (no GPU form: the Γ metric on a mesh level)", "{preset}"),
+            }
+        }
     }
 }

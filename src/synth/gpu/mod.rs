@@ -13,21 +13,25 @@
 //! lets each vertex take its winner, and one moves the choosy use counts. One pass is one
 //! command buffer: the state goes up before it and comes back after.
 //!
-//! The GPU form covers square-template passes on a plane (a grid level) under the
-//! interleaved order: the `appearance` and `tong2002` presets on every level, and recipes
-//! built like them — every own pixel compared ([`Mask::Full`]), with or without a parent
-//! template (narrow or wide), the Γ, appearance or colour metric, argmin or choosy
-//! selection, k-coherence or full search. Anything else (mesh levels, sequential orders,
-//! round or isotropic neighbourhoods, masked templates, the use penalty, kd-trees) has no
-//! GPU form and runs on the CPU (each level's report says which, and why).
+//! The GPU form covers square-template passes under the interleaved order: on a plane (a
+//! grid level) the `appearance` and `tong2002` presets on every level, and recipes built
+//! like them — every own pixel compared ([`Mask::Full`]), with or without a parent template
+//! (narrow or wide), the Γ, appearance or colour metric, argmin or choosy selection,
+//! k-coherence or full search; on a mesh the same without Γ (`appearance`), each template
+//! pixel blending up to three vertices' vectors as [`known_parts`] weighs them. Anything
+//! else (Γ on a mesh, sequential orders, round or isotropic neighbourhoods, masked
+//! templates, the use penalty, kd-trees) has no GPU form and runs on the CPU (each level's
+//! report says which, and why).
 
 use super::candidates::{full_candidates, Search};
 use super::engine::{PassStats, Select, State};
 use super::job::PassJob;
+use super::metric::known_parts;
 use super::neighbourhood::{Mask, Neighbourhood, ParentTemplate, SquareMetric};
 use super::pass::{Colouring, Schedule, VERTEX_SEED};
 use super::sample::{AppearanceMap, SampleLevel};
-use super::target::Neighbourhoods;
+use super::slot::{Slot, OUTSIDE};
+use super::target::{Neighbourhoods, Shift};
 use crate::render::gpu::context::Gpu;
 use crate::{Error, Result};
 use rand::SeedableRng;
@@ -38,22 +42,22 @@ use std::sync::OnceLock;
 /// Widest template: the appearance maps' border holds 2 · PAD + 1.
 const MAX_TEMPLATE: usize = 2 * AppearanceMap::PAD + 1;
 
-/// Distinct shift texels and candidates of one vertex its table and list may hold (the
-/// shader's `MAX_ENTRIES`; under two thirds of the table's `CAP` = 1024 slots, so that
-/// probing stays short).
-const MAX_ENTRIES: usize = 640;
+/// Distinct shift texels and candidates of one vertex the smallest table holds: a plane's
+/// 5 × 5 window with 11 candidates each, and more.
+const MIN_ENTRIES: usize = 640;
 
-/// Scratch words per invocation (the shader's `STRIDE`: table, list, count and best).
-const STRIDE: usize = 2 * 1024 + MAX_ENTRIES + 5;
+/// The most a table may hold: a mesh vertex's patch of about 680 vertices with 11
+/// candidates each (some 160 KB of scratch per vertex).
+const MAX_ENTRIES: usize = 8192;
 
 /// Vertices matched per dispatch on a software adapter: a sub-pass larger than this is
-/// dispatched in parts (they share the scratch, `STRIDE` × 4 bytes per vertex). Lavapipe
+/// dispatched in parts (they share the scratch, [`Table::stride`] words per vertex). Lavapipe
 /// runs on the CPU's few cores, where larger dispatches gain nothing but host memory.
 const SOFTWARE_CHUNK: usize = 4096;
 
-/// The scratch one dispatch may take on a hardware adapter (about 49,000 vertices): on a
-/// large GPU, 4,096 vertices fill a few of its cores, and a 1024² plane's sub-pass took 29
-/// parts where 3 do.
+/// The scratch one dispatch may take on a hardware adapter (about 49,000 vertices of a
+/// plane): on a large GPU, 4,096 vertices fill a few of its cores, and a 1024² plane's
+/// sub-pass took 29 parts where 3 do.
 const HARDWARE_SCRATCH: u64 = 512 << 20;
 
 /// Loop iterations one score dispatch may spend per invocation: Mesa's llvmpipe (lavapipe)
@@ -160,6 +164,14 @@ struct Params {
     stamp: u32,
     off_full: u32,
     batch: u32,
+    mesh: u32,
+    off_slots: u32,
+    off_p_slots: u32,
+    off_shift_start: u32,
+    off_shifts: u32,
+    cap_bits: u32,
+    entries: u32,
+    stride: u32,
     _pad: [u32; 3],
 }
 
@@ -172,21 +184,55 @@ struct Grid {
     wraps: bool,
 }
 
-fn grid_of(n: &Neighbourhoods) -> Option<Grid> {
-    match *n {
-        Neighbourhoods::Grid { width, height, template, wraps } => {
-            Some(Grid { width, height, template, wraps })
+/// A level's templates as the shader reads them: the grid around each vertex, or a mesh's
+/// stored pixels and patch vertices.
+#[derive(Clone, Copy)]
+enum Shape<'a> {
+    Grid(Grid),
+    Mesh { template: usize, slots: &'a [Slot], shift_start: &'a [u32], shifts: &'a [Shift] },
+}
+
+impl Shape<'_> {
+    fn of(n: &Neighbourhoods) -> Shape<'_> {
+        match *n {
+            Neighbourhoods::Grid { width, height, template, wraps } => {
+                Shape::Grid(Grid { width, height, template, wraps })
+            }
+            Neighbourhoods::Mesh { template, ref slots, ref shift_start, ref shifts } => {
+                Shape::Mesh { template, slots, shift_start, shifts }
+            }
         }
-        Neighbourhoods::Mesh { .. } => None,
+    }
+
+    fn template(&self) -> usize {
+        match *self {
+            Shape::Grid(g) => g.template,
+            Shape::Mesh { template, .. } => template,
+        }
+    }
+
+    fn is_mesh(&self) -> bool {
+        matches!(self, Shape::Mesh { .. })
+    }
+
+    /// The most forward shifts a vertex has: its window's pixels on a grid, its patch
+    /// vertices on a mesh.
+    fn most_shifts(&self) -> usize {
+        match self {
+            Shape::Grid(g) => g.template * g.template,
+            Shape::Mesh { shift_start, .. } => {
+                shift_start.windows(2).map(|w| (w[1] - w[0]) as usize).max().unwrap_or(0)
+            }
+        }
     }
 }
 
 /// A pass in its GPU form.
 struct Form<'a> {
     metric: SquareMetric,
-    grid: Grid,
-    /// The parent template's grid and the coarser level's state and sample.
-    parent: Option<(Grid, ParentTemplate, &'a State, &'a SampleLevel)>,
+    shape: Shape<'a>,
+    /// The parent templates and the coarser level's state and sample.
+    parent: Option<(Shape<'a>, ParentTemplate, &'a State, &'a SampleLevel)>,
     choosy: Option<f32>,
     search: Search,
     colouring: &'a Colouring,
@@ -195,7 +241,7 @@ struct Form<'a> {
 
 /// The GPU form of `job`, or why it has none.
 fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
-    let Some(grid) = grid_of(&job.target.neighbourhoods) else { return Err("a mesh level".into()) };
+    let shape = Shape::of(&job.target.neighbourhoods);
     let &Schedule::Interleaved { colouring, seed } = job.schedule else {
         return Err("a sequential visiting order".into());
     };
@@ -204,6 +250,9 @@ fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
     };
     if template.mask() != Mask::Full {
         return Err(format!("a template masked {:?}", template.mask()));
+    }
+    if shape.is_mesh() && metric == SquareMetric::Gamma {
+        return Err("the Γ metric on a mesh level".into());
     }
     let choosy = match job.pass.select {
         Select::Argmin => None,
@@ -216,43 +265,48 @@ fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
     };
     let parent = match (template.parent(), job.coarse, job.coarse_sample) {
         (Some(kind), Some(coarse), Some(coarse_sample)) => {
-            Some((parent_grid(job, kind)?, kind, coarse, coarse_sample))
+            Some((parent_shape(job, kind, shape)?, kind, coarse, coarse_sample))
         }
         _ => None,
     };
-    let form = Form { metric, grid, parent, choosy, search, colouring, seed };
+    let form = Form { metric, shape, parent, choosy, search, colouring, seed };
     fits_the_shader(job, &form)?;
     Ok(form)
 }
 
-/// The grid a parent template of `kind` reads, where it is one the metric reads too.
-fn parent_grid(job: &PassJob, kind: ParentTemplate) -> std::result::Result<Grid, String> {
-    let (grid, metric_template) = match kind {
+/// The templates a parent template of `kind` reads, where they are of `own`'s kind (grid or
+/// mesh) and of the side the metric reads.
+fn parent_shape<'a>(
+    job: &PassJob<'a>,
+    kind: ParentTemplate,
+    own: Shape,
+) -> std::result::Result<Shape<'a>, String> {
+    let (shape, metric_template) = match kind {
         ParentTemplate::Narrow => {
-            (job.target.parent_neighbourhoods.as_ref().and_then(grid_of), job.target.parent_template)
+            (job.target.parent_neighbourhoods.as_ref().map(Shape::of), job.target.parent_template)
         }
         ParentTemplate::Wide => {
-            (job.coarser.and_then(|c| grid_of(&c.neighbourhoods)), job.coarser.map_or(0, |c| c.template))
+            (job.coarser.map(|c| Shape::of(&c.neighbourhoods)), job.coarser.map_or(0, |c| c.template))
         }
     };
-    let Some(grid) = grid else { return Err("a parent template off the grid".into()) };
-    if grid.template != metric_template || job.target.parents.len() != job.target.vertices {
-        return Err("a parent template unlike its grid's".into());
+    let Some(shape) = shape.filter(|s| s.is_mesh() == own.is_mesh()) else {
+        return Err("a parent template off the level's grid or mesh".into());
+    };
+    if shape.template() != metric_template || job.target.parents.len() != job.target.vertices {
+        return Err("a parent template unlike its level's".into());
     }
-    Ok(grid)
+    Ok(shape)
 }
 
 /// Whether `form` stays within what the shader holds: odd templates within the maps'
 /// border, the candidate table, 16-bit coordinates, and the metric's maps on both levels.
 fn fits_the_shader(job: &PassJob, form: &Form) -> std::result::Result<(), String> {
-    let templates = std::iter::once(form.grid.template).chain(form.parent.map(|p| p.0.template));
+    let templates = std::iter::once(form.shape.template()).chain(form.parent.map(|p| p.0.template()));
     if templates.into_iter().any(|t| t > MAX_TEMPLATE || t % 2 == 0) {
         return Err(format!("a template wider than {MAX_TEMPLATE}"));
     }
-    if let Search::KCoherence { k } = form.search {
-        if form.grid.template * form.grid.template * (k.min(job.sample.k) + 1) > MAX_ENTRIES {
-            return Err("more candidates per vertex than the shader's table holds".into());
-        }
+    if Table::of(job, form).entries > MAX_ENTRIES {
+        return Err("more candidates per vertex than the shader's table holds".into());
     }
     let samples = std::iter::once(job.sample).chain(form.parent.map(|p| p.3));
     if samples.into_iter().any(|s| s.width >= 1 << 16 || s.height >= 1 << 16 || s.width * s.height >= 1 << 29)
@@ -276,6 +330,34 @@ struct LevelKey {
     level: usize,
     metric: SquareMetric,
     parent: Option<ParentTemplate>,
+    table: Table,
+}
+
+/// An invocation's candidate table (open addressing, 2^`bits` slots of two words) and list
+/// (`entries` words), sized for the most forward shifts and candidates a vertex may have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Table {
+    bits: u32,
+    entries: usize,
+}
+
+impl Table {
+    /// The table `form` needs on `job`'s level: each forward shift, and each of its
+    /// candidates under k-coherence, at least [`MIN_ENTRIES`]; the table at most two
+    /// thirds full, so that probing stays short.
+    fn of(job: &PassJob, form: &Form) -> Table {
+        let per_shift = match form.search {
+            Search::KCoherence { k } => k.min(job.sample.k) + 1,
+            _ => 1,
+        };
+        let entries = (form.shape.most_shifts() * per_shift).max(MIN_ENTRIES);
+        Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries }
+    }
+
+    /// Scratch words per invocation (the shader's `P.stride`): table, list, count and best.
+    fn stride(&self) -> usize {
+        2 * (1 << self.bits) + self.entries + 5
+    }
 }
 
 /// A level's buffers: its static tables (sample, parent, colouring), the state and what the
@@ -340,8 +422,8 @@ pub struct GpuSynth {
     /// The shader's entry points: gather, score, finish, apply_counts.
     pipelines: [wgpu::ComputePipeline; 4],
     level: Option<LevelBuffers>,
-    /// Vertices matched per dispatch ([`chunk_of`]).
-    chunk: usize,
+    /// Whether the adapter is a software one (lavapipe, llvmpipe; see [`chunk_of`]).
+    software: bool,
     /// The last dispatch's stamp (each marks its candidate tables' slots as its own).
     stamp: u32,
 }
@@ -375,8 +457,8 @@ impl GpuSynth {
             };
             Ok((layout, ["gather", "score", "finish", "apply_counts"].map(pipeline)))
         })?;
-        let chunk = chunk_of(&gpu.adapter.get_info(), &gpu.device.limits());
-        Ok(GpuSynth { gpu, layout, pipelines, level: None, chunk, stamp: 0 })
+        let software = gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+        Ok(GpuSynth { gpu, layout, pipelines, level: None, software, stamp: 0 })
     }
 
     /// The adapter's name and backend.
@@ -395,13 +477,15 @@ impl GpuSynth {
             Ok(form) => form,
             Err(why) => return Ok(Err(why)),
         };
-        let key = LevelKey { level: job.level, metric: form.metric, parent: form.parent.map(|p| p.1) };
+        let table = Table::of(job, &form);
+        let key = LevelKey { level: job.level, metric: form.metric, parent: form.parent.map(|p| p.1), table };
         let level = match self.level.take() {
             Some(level) if level.key == key => level,
             other => {
                 // The last level's buffers go before this one's are made.
                 drop(other);
-                let plan = plan_level(job, &form, key, self.chunk);
+                let chunk = chunk_of(self.software, &self.gpu.device.limits(), table);
+                let plan = plan_level(job, &form, key, chunk);
                 if let Err(why) = fits(&self.gpu.device.limits(), &plan) {
                     return Ok(Err(why));
                 }
@@ -585,23 +669,20 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelP
     [base.off_labels, base.off_gamma, base.off_map, base.map_stride] =
         push_sample(&mut tables, sample, form.metric);
     let mut coarse = vec![0u32; 2];
-    if let Some((grid, _, coarse_state, coarse_sample)) = form.parent {
+    if let Some((_, _, coarse_state, coarse_sample)) = form.parent {
         [base.off_p_labels, base.off_p_gamma, base.off_p_map, base.p_map_stride] =
             push_sample(&mut tables, coarse_sample, form.metric);
         base.off_parents = push(&mut tables, target.parents.iter().map(|p| p.vertex));
-        (base.p_grid_w, base.p_grid_h, base.p_wraps) =
-            (grid.width as u32, grid.height as u32, grid.wraps.into());
-        (base.p_side, base.p_sw, base.p_sh) =
-            (grid.template as u32, coarse_sample.width as u32, coarse_sample.height as u32);
+        (base.p_sw, base.p_sh) = (coarse_sample.width as u32, coarse_sample.height as u32);
         base.p_textons = coarse_sample.textons as u32;
         base.parent = 1;
         coarse = pack_state(coarse_state);
     }
     base.off_classes = push(&mut tables, form.colouring.classes.iter().flatten().copied());
     base.off_full = push(&mut tables, full_candidates(sample, target.template / 2));
-    let g = form.grid;
-    (base.grid_w, base.grid_h, base.side, base.wraps) =
-        (g.width as u32, g.height as u32, g.template as u32, g.wraps.into());
+    push_templates(&mut tables, &mut base, form);
+    (base.cap_bits, base.entries, base.stride) =
+        (key.table.bits, key.table.entries as u32, key.table.stride() as u32);
     (base.sw, base.sh, base.tileable) = (sample.width as u32, sample.height as u32, sample.tileable.into());
     (base.radius, base.list_stride, base.textons) =
         ((target.template / 2) as u32, sample.k as u32, sample.textons as u32);
@@ -619,19 +700,65 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelP
         batches,
         vertices: target.vertices,
         texels: sample.width * sample.height,
-        scratch_bytes: widest * STRIDE * 4,
+        scratch_bytes: widest * key.table.stride() * 4,
     }
 }
 
-/// Vertices matched per dispatch on `info`'s adapter: [`SOFTWARE_CHUNK`] on a CPU one, else
-/// as many as [`HARDWARE_SCRATCH`] holds within `limits`, in whole workgroups. Each
+/// The level's templates (and the parent's) into `base`: a grid's shape, or a mesh's pixels
+/// and forward shifts pushed onto `tables`.
+fn push_templates(tables: &mut Vec<u32>, base: &mut Params, form: &Form) {
+    let own = form.shape;
+    base.side = own.template() as u32;
+    match own {
+        Shape::Grid(g) => {
+            (base.grid_w, base.grid_h, base.wraps) = (g.width as u32, g.height as u32, g.wraps.into())
+        }
+        Shape::Mesh { template, slots, shift_start, shifts } => {
+            base.mesh = 1;
+            base.off_slots = push_slots(tables, slots, template);
+            base.off_shift_start = push(tables, shift_start.iter().copied());
+            let words = shifts.iter().flat_map(|&(u, [x, y])| [u, x.to_bits(), y.to_bits()]);
+            base.off_shifts = push(tables, words);
+        }
+    }
+    let Some((parent, ..)) = form.parent else { return };
+    base.p_side = parent.template() as u32;
+    match parent {
+        Shape::Grid(g) => {
+            (base.p_grid_w, base.p_grid_h, base.p_wraps) = (g.width as u32, g.height as u32, g.wraps.into())
+        }
+        Shape::Mesh { template, slots, .. } => base.off_p_slots = push_slots(tables, slots, template),
+    }
+}
+
+/// A mesh's template pixels (`template`² per vertex) as the shader reads them: each as
+/// [`known_parts`] leaves it (no vertex unknown), its three vertices ([`OUTSIDE`] for a part
+/// it lacks) and their weights, or `SKIP` where the metric compares nothing.
+fn push_slots(tables: &mut Vec<u32>, slots: &[Slot], template: usize) -> u32 {
+    const SKIP: u32 = OUTSIDE - 1;
+    let at = push(tables, slots.iter().flat_map(|_| [SKIP, 0, 0, 0, 0, 0]));
+    for (v, vertex_slots) in slots.chunks_exact(template * template).enumerate() {
+        let start = at as usize + v * template * template * 6;
+        for (i, parts, count) in known_parts(vertex_slots, None) {
+            let words = &mut tables[start + 6 * i..start + 6 * i + 6];
+            for (a, &(vertex, weight)) in parts.iter().enumerate() {
+                let (vertex, weight) = if a < count { (vertex, weight) } else { (OUTSIDE, 0.0) };
+                (words[a], words[3 + a]) = (vertex, weight.to_bits());
+            }
+        }
+    }
+    at
+}
+
+/// Vertices matched per dispatch with `table`: [`SOFTWARE_CHUNK`] on a `software` adapter,
+/// else as many as [`HARDWARE_SCRATCH`] holds within `limits`, in whole workgroups. Each
 /// sub-pass's vertices are independent, so the parts give the same result at any size.
-fn chunk_of(info: &wgpu::AdapterInfo, limits: &wgpu::Limits) -> usize {
-    if info.device_type == wgpu::DeviceType::Cpu {
+fn chunk_of(software: bool, limits: &wgpu::Limits, table: Table) -> usize {
+    if software {
         return SOFTWARE_CHUNK;
     }
     let bytes = HARDWARE_SCRATCH.min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
-    let vertices = (bytes / (STRIDE as u64 * 4)) as usize;
+    let vertices = (bytes / (table.stride() as u64 * 4)) as usize;
     (vertices / GROUP as usize * GROUP as usize).max(GROUP as usize)
 }
 
@@ -654,10 +781,11 @@ fn parts_of(colouring: &Colouring, chunk: usize) -> Vec<(usize, u32, u32)> {
 /// need.
 fn batching(job: &PassJob, form: &Form, dims: usize) -> (u32, usize) {
     let per_pixel = if form.metric == SquareMetric::Gamma { 1 } else { 1 + dims };
-    let g = form.grid.template;
-    let pixels = g * g + form.parent.map_or(0, |p| p.0.template * p.0.template);
+    let g = form.shape.template();
+    let pixels = g * g + form.parent.map_or(0, |p| p.0.template() * p.0.template());
     let batch = (LOOP_BUDGET / (pixels * per_pixel + 16)).max(1) as u32;
-    let most = full_candidates(job.sample, job.target.template / 2).len().max(MAX_ENTRIES) as u32;
+    let most =
+        full_candidates(job.sample, job.target.template / 2).len().max(Table::of(job, form).entries) as u32;
     (batch, most.div_ceil(batch) as usize)
 }
 
@@ -711,7 +839,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
     params.batch = level.batch;
     let most = match form.search {
         Search::Full => params.full_count.max(1),
-        _ => (form.grid.template * form.grid.template) as u32 * params.list_k.max(1),
+        _ => form.shape.most_shifts() as u32 * params.list_k.max(1),
     };
     (params, (most.div_ceil(level.batch) as usize).min(level.batches))
 }
