@@ -78,8 +78,9 @@ struct Batch {
 // Per vertex: best distance (bits), candidates compared, old texel, new texel (or NONE).
 @group(0) @binding(6) var<storage, read_write> outs: array<u32>;
 // Per invocation of a dispatch, P.stride words: its candidate table (two words per slot: see
-// find_slot), its candidate list (P.entries), its count, whether the list is the full one, and the
-// best so far (found, distance bits, texel).
+// find_slot), its candidate list (P.entries), its count, whether the list is the full one,
+// the best so far (found, distance bits, texel), and on a mesh its templates' blended
+// vectors (own, then parent).
 @group(0) @binding(7) var<storage, read_write> scratch: array<u32>;
 @group(0) @binding(8) var<uniform> B: Batch;
 
@@ -244,6 +245,7 @@ struct Window {
     grid: vec3<u32>,     // width, height, wraps
     coarse: bool,        // read from `coarse` (the parent level) rather than `state`
     slots: u32,          // on a mesh: the word offset of the vertex's pixels; NONE on a plane
+    query: u32,          // on a mesh: where in `scratch` its pixels' blended vectors lie
 }
 
 struct Level {
@@ -327,9 +329,25 @@ fn part(slot: u32, a: u32, j: u32, lv: Level, on_coarse: bool) -> f32 {
     return opaque(f(tables[slot + 3u + a]) * f(tables[m + j]));
 }
 
-// `cost` on a mesh (appearance or colour SSD): each compared pixel's vector is the blend of
-// its vertices' vectors, AppearanceMetric::prepare's sum in its order (the parts unrolled:
-// llvmpipe counts loop iterations).
+// The blended vectors of `win`'s mesh pixels into `scratch` at win.query: each compared
+// pixel's vector is the blend of its vertices' vectors, AppearanceMetric::prepare's sum in
+// its order (the parts unrolled: llvmpipe counts loop iterations). Once per vertex, before
+// its candidates are scored.
+fn prepare(win: Window, lv: Level) {
+    for (var i = 0u; i < win.side * win.side; i = i + 1u) {
+        let slot = win.slots + SLOT_WORDS * i;
+        if (tables[slot] == SKIP) {
+            continue;
+        }
+        for (var j = 0u; j < P.dims; j = j + 1u) {
+            let q = ((0.0 + part(slot, 0u, j, lv, win.coarse)) + part(slot, 1u, j, lv, win.coarse))
+                + part(slot, 2u, j, lv, win.coarse);
+            scratch[win.query + i * P.dims + j] = bitcast<u32>(q);
+        }
+    }
+}
+
+// `cost` on a mesh (appearance or colour SSD), against the vectors `prepare` blended.
 fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
     let t = win.side;
     let r = i32(t / 2u);
@@ -345,9 +363,7 @@ fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) 
         let o = base + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
         var s = 0.0;
         for (var j = 0u; j < P.dims; j = j + 1u) {
-            let q = ((0.0 + part(slot, 0u, j, lv, win.coarse)) + part(slot, 1u, j, lv, win.coarse))
-                + part(slot, 2u, j, lv, win.coarse);
-            let e = f(tables[o + j]) - q;
+            let e = f(tables[o + j]) - f(scratch[win.query + i * P.dims + j]);
             s = s + opaque(e * e);
         }
         d = d + s;
@@ -393,9 +409,8 @@ struct Best {
 fn consider(best: ptr<function, Best>, own: Window, up: Window, q: u32, factor: f32) {
     let x = i32(q % P.sw);
     let y = i32(q / P.sw);
-    let own_level = Level(P.off_labels, P.off_gamma, P.off_map, P.map_stride, vec3<u32>(P.sw, P.sh, P.textons));
-    let p_level =
-        Level(P.off_p_labels, P.off_p_gamma, P.off_p_map, P.p_map_stride, vec3<u32>(P.p_sw, P.p_sh, P.p_textons));
+    let own_level = level_of(false);
+    let p_level = level_of(true);
     if (!(*best).found) {
         // Bound +∞: nothing stops early, the parent always joins.
         var d = cost(own, own_level, x, y, false, 0.0);
@@ -420,6 +435,14 @@ fn consider(best: ptr<function, Best>, own: Window, up: Window, q: u32, factor: 
         (*best).d = s;
         (*best).q = q;
     }
+}
+
+// The sample level the vertex's own template (or its parent template) is compared on.
+fn level_of(parent: bool) -> Level {
+    if (parent) {
+        return Level(P.off_p_labels, P.off_p_gamma, P.off_p_map, P.p_map_stride, vec3<u32>(P.p_sw, P.p_sh, P.p_textons));
+    }
+    return Level(P.off_labels, P.off_gamma, P.off_map, P.map_stride, vec3<u32>(P.sw, P.sh, P.textons));
 }
 
 // selection_factor: the choosy penalty times the coherence bias on a fresh copy.
@@ -514,6 +537,33 @@ fn list_base(i: u32) -> u32 {
 fn meta_base(i: u32) -> u32 {
     return i * P.stride + (2u << P.cap_bits) + P.entries;
 }
+// On a mesh: the blended vectors of the vertex's template, then of its parent template.
+fn query_base(i: u32) -> u32 {
+    return meta_base(i) + 5u;
+}
+
+// Invocation i's vertex v's template (and parent template, or a copy of the own where there
+// is none), as `cost` reads them.
+fn own_window(v: u32, i: u32) -> Window {
+    var own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false, NONE, 0u);
+    if (P.mesh != 0u) {
+        own.slots = P.off_slots + v * P.side * P.side * SLOT_WORDS;
+        own.query = query_base(i);
+    }
+    return own;
+}
+fn up_window(v: u32, i: u32) -> Window {
+    if (P.parent == 0u) {
+        return own_window(v, i);
+    }
+    let pv = tables[P.off_parents + v];
+    var up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE, 0u);
+    if (P.mesh != 0u) {
+        up.slots = P.off_p_slots + pv * P.p_side * P.p_side * SLOT_WORDS;
+        up.query = query_base(i) + P.side * P.side * P.dims;
+    }
+    return up;
+}
 
 // The vertex's forward shifts (Coherence::gather): each window vertex's coordinate shifted
 // back by its offset, where it lands on a candidate texel, all marked in the table; then its
@@ -578,6 +628,12 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
         scratch[list] = pass_data[P.off_draws + v];
         count = 1u;
     }
+    if (P.mesh != 0u) {
+        prepare(own_window(v, i), level_of(false));
+        if (P.parent != 0u) {
+            prepare(up_window(v, i), level_of(true));
+        }
+    }
     let info = meta_base(i);
     scratch[info] = count;
     scratch[info + 1u] = full;
@@ -601,18 +657,8 @@ fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let v = vertex_of(i);
     let current = current_of(v);
-    var own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false, NONE);
-    if (P.mesh != 0u) {
-        own.slots = P.off_slots + v * P.side * P.side * SLOT_WORDS;
-    }
-    var up = own;
-    if (P.parent != 0u) {
-        let pv = tables[P.off_parents + v];
-        up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE);
-        if (P.mesh != 0u) {
-            up.slots = P.off_p_slots + pv * P.p_side * P.p_side * SLOT_WORDS;
-        }
-    }
+    let own = own_window(v, i);
+    let up = up_window(v, i);
     let full = scratch[info + 1u] != 0u;
     var best = Best(scratch[info + 2u] != 0u, f(scratch[info + 3u]), scratch[info + 4u]);
     if (!best.found) {

@@ -60,9 +60,9 @@ const AUTO_FULL_SEARCH: &str = "a full search, which the CPU runs faster";
 
 /// Why [`Device::Auto`] runs mesh levels on the CPU: a mesh's colouring needs some 100
 /// colours (a vertex reads its whole patch), so a sub-pass has a few hundred vertices, one
-/// invocation each. A 250k-vertex surface's synthesis took 21.3 s on an NVIDIA H200, 4.7 s on
-/// its host's 16 cores and 8.1 s on 2 of them (docs/speed.md).
-const AUTO_MESH: &str = "a mesh level, which the CPU runs faster";
+/// invocation each. A 250k-vertex surface's synthesis took 7.7 s on an NVIDIA H200, 3.5 s on
+/// its host's 16 cores and 10.4 s on 2 of them (docs/speed.md).
+const AUTO_MESH: &str = "a mesh level, which the GPU runs no faster than 3 CPU cores";
 
 /// Runs the passes that can run on the GPU there, and counts per level which ran where.
 pub(crate) struct Runner {

@@ -334,11 +334,13 @@ struct LevelKey {
 }
 
 /// An invocation's candidate table (open addressing, 2^`bits` slots of two words) and list
-/// (`entries` words), sized for the most forward shifts and candidates a vertex may have.
+/// (`entries` words), sized for the most forward shifts and candidates a vertex may have;
+/// on a mesh, the `query` words of its templates' blended vectors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Table {
     bits: u32,
     entries: usize,
+    query: usize,
 }
 
 impl Table {
@@ -351,12 +353,21 @@ impl Table {
             _ => 1,
         };
         let entries = (form.shape.most_shifts() * per_shift).max(MIN_ENTRIES);
-        Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries }
+        let pixels = |s: Shape| s.template() * s.template();
+        let query = match form.shape.is_mesh() {
+            true => {
+                let dims = map_of(job.sample, form.metric).map_or(0, |m| m.dims);
+                (pixels(form.shape) + form.parent.map_or(0, |p| pixels(p.0))) * dims
+            }
+            false => 0,
+        };
+        Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries, query }
     }
 
-    /// Scratch words per invocation (the shader's `P.stride`): table, list, count and best.
+    /// Scratch words per invocation (the shader's `P.stride`): table, list, count, best and
+    /// blended vectors.
     fn stride(&self) -> usize {
-        2 * (1 << self.bits) + self.entries + 5
+        2 * (1 << self.bits) + self.entries + 5 + self.query
     }
 }
 
