@@ -8,9 +8,11 @@
 //!
 //! A sub-pass is a few dispatches over its vertices (in parts that share one scratch buffer:
 //! 4,096 vertices on a software adapter, as many as 512 MiB hold on a hardware one, so that
-//! a large GPU is not left mostly idle by small dispatches): one gathers each vertex's candidates, then each of a few scores a batch of them (Mesa's
-//! llvmpipe ends an invocation's loops after 65535 iterations in all, `LOOP_BUDGET`), one
-//! lets each vertex take its winner, and one moves the choosy use counts. One pass is one
+//! a large GPU is not left mostly idle by small dispatches): one gathers each vertex's
+//! candidates (and on a mesh blends its templates), then each of a few scores a batch of
+//! them (Mesa's llvmpipe ends an invocation's loops after 65535 iterations in all,
+//! `LOOP_BUDGET`), one lets each vertex take its winner, and one moves the choosy use
+//! counts. One pass is one
 //! command buffer: the state goes up before it and comes back after.
 //!
 //! The GPU form covers square-template passes under the interleaved order: on a plane (a
@@ -38,6 +40,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::sync::OnceLock;
+
+/// Words of a mesh's template pixel in the shader's tables: three vertices, three weights.
+const SLOT_WORDS: usize = 6;
 
 /// Widest template: the appearance maps' border holds 2 · PAD + 1.
 const MAX_TEMPLATE: usize = 2 * AppearanceMap::PAD + 1;
@@ -305,8 +310,13 @@ fn fits_the_shader(job: &PassJob, form: &Form) -> std::result::Result<(), String
     if templates.into_iter().any(|t| t > MAX_TEMPLATE || t % 2 == 0) {
         return Err(format!("a template wider than {MAX_TEMPLATE}"));
     }
-    if Table::of(job, form).entries > MAX_ENTRIES {
+    let table = Table::of(job, form);
+    if table.entries > MAX_ENTRIES {
         return Err("more candidates per vertex than the shader's table holds".into());
+    }
+    // The gather's loops: each shift and its candidates, then the blended vectors.
+    if table.entries + table.query > LOOP_BUDGET {
+        return Err("templates too large for one invocation's loops".into());
     }
     let samples = std::iter::once(job.sample).chain(form.parent.map(|p| p.3));
     if samples.into_iter().any(|s| s.width >= 1 << 16 || s.height >= 1 << 16 || s.width * s.height >= 1 << 29)
@@ -749,9 +759,9 @@ fn push_slots(tables: &mut Vec<u32>, slots: &[Slot], template: usize) -> u32 {
     const SKIP: u32 = OUTSIDE - 1;
     let at = push(tables, slots.iter().flat_map(|_| [SKIP, 0, 0, 0, 0, 0]));
     for (v, vertex_slots) in slots.chunks_exact(template * template).enumerate() {
-        let start = at as usize + v * template * template * 6;
+        let start = at as usize + v * template * template * SLOT_WORDS;
         for (i, parts, count) in known_parts(vertex_slots, None) {
-            let words = &mut tables[start + 6 * i..start + 6 * i + 6];
+            let words = &mut tables[start + SLOT_WORDS * i..start + SLOT_WORDS * (i + 1)];
             for (a, &(vertex, weight)) in parts.iter().enumerate() {
                 let (vertex, weight) = if a < count { (vertex, weight) } else { (OUTSIDE, 0.0) };
                 (words[a], words[3 + a]) = (vertex, weight.to_bits());
@@ -762,15 +772,13 @@ fn push_slots(tables: &mut Vec<u32>, slots: &[Slot], template: usize) -> u32 {
 }
 
 /// Vertices matched per dispatch with `table`: [`SOFTWARE_CHUNK`] on a `software` adapter,
-/// else as many as [`HARDWARE_SCRATCH`] holds within `limits`, in whole workgroups. Each
+/// else as many as [`HARDWARE_SCRATCH`] holds; within `limits`, in whole workgroups. Each
 /// sub-pass's vertices are independent, so the parts give the same result at any size.
 fn chunk_of(software: bool, limits: &wgpu::Limits, table: Table) -> usize {
-    if software {
-        return SOFTWARE_CHUNK;
-    }
-    let bytes = HARDWARE_SCRATCH.min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
-    let vertices = (bytes / (table.stride() as u64 * 4)) as usize;
-    (vertices / GROUP as usize * GROUP as usize).max(GROUP as usize)
+    let stride = table.stride() as u64 * 4;
+    let budget = if software { SOFTWARE_CHUNK as u64 * stride } else { HARDWARE_SCRATCH };
+    let bytes = budget.min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    ((bytes / stride) as usize / GROUP as usize * GROUP as usize).max(GROUP as usize)
 }
 
 /// The sub-passes' parts of at most `chunk` vertices: (class, offset in the concatenated
