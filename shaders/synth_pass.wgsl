@@ -57,7 +57,10 @@ struct Params {
     off_shift_start: u32, off_shifts: u32,
     // An invocation's candidate table (2^cap_bits slots) and list (entries words), and its
     // scratch words in all (2 · 2^cap_bits + entries + 5).
-    cap_bits: u32, entries: u32, stride: u32, _pad0: u32, _pad1: u32, _pad2: u32,
+    cap_bits: u32, entries: u32, stride: u32,
+    // On a mesh under k-coherence: each candidate's pixel costs are computed side by side
+    // (`pixel_costs`) before `score` sums them in order.
+    split: u32, _pad0: u32, _pad1: u32,
 }
 
 // A score dispatch's candidates: [start, start + P.batch) of each vertex's.
@@ -246,6 +249,7 @@ struct Window {
     coarse: bool,        // read from `coarse` (the parent level) rather than `state`
     slots: u32,          // on a mesh: the word offset of the vertex's pixels; NONE on a plane
     query: u32,          // on a mesh: where in `scratch` its pixels' blended vectors lie
+    costs: u32,          // under P.split: where the candidate's pixel costs lie; else NONE
 }
 
 struct Level {
@@ -347,8 +351,30 @@ fn prepare(win: Window, lv: Level) {
     }
 }
 
-// `cost` on a mesh (appearance or colour SSD), against the vectors `prepare` blended.
+// One pixel's cost on a mesh (appearance or colour SSD): its blended vector against the
+// sample's at `o`, the terms summed in AppearanceMetric::cost's order.
+fn pixel_cost(win: Window, i: u32, o: u32) -> f32 {
+    var s = 0.0;
+    for (var j = 0u; j < P.dims; j = j + 1u) {
+        let e = f(tables[o + j]) - f(scratch[win.query + i * P.dims + j]);
+        s = s + opaque(e * e);
+    }
+    return s;
+}
+
+// `cost` on a mesh, against the vectors `prepare` blended; under P.split from the pixel
+// costs `pixel_costs` left (a pixel not compared left 0, which changes no sum).
 fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
+    if (win.costs != NONE) {
+        var d = 0.0;
+        for (var i = 0u; i < win.side * win.side; i = i + 1u) {
+            d = d + f(scratch[win.costs + i]);
+            if (bounded && d > bound) {
+                break;
+            }
+        }
+        return d;
+    }
     let t = win.side;
     let r = i32(t / 2u);
     var d = 0.0;
@@ -361,12 +387,7 @@ fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) 
         let dx = i32(i % t) - r;
         let dy = i32(i / t) - r;
         let o = base + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
-        var s = 0.0;
-        for (var j = 0u; j < P.dims; j = j + 1u) {
-            let e = f(tables[o + j]) - f(scratch[win.query + i * P.dims + j]);
-            s = s + opaque(e * e);
-        }
-        d = d + s;
+        d = d + pixel_cost(win, i, o);
         if (bounded && d > bound) {
             break;
         }
@@ -541,11 +562,19 @@ fn meta_base(i: u32) -> u32 {
 fn query_base(i: u32) -> u32 {
     return meta_base(i) + 5u;
 }
+// Pixels of the vertex's template and parent template.
+fn pixels() -> u32 {
+    return P.side * P.side + select(0u, P.p_side * P.p_side, P.parent != 0u);
+}
+// Under P.split: per candidate, its pixel costs (own template, then parent template).
+fn costs_base(i: u32) -> u32 {
+    return query_base(i) + pixels() * P.dims;
+}
 
 // Invocation i's vertex v's template (and parent template, or a copy of the own where there
 // is none), as `cost` reads them.
 fn own_window(v: u32, i: u32) -> Window {
-    var own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false, NONE, 0u);
+    var own = Window(i32(v), P.side, vec3<u32>(P.grid_w, P.grid_h, P.wraps), false, NONE, 0u, NONE);
     if (P.mesh != 0u) {
         own.slots = P.off_slots + v * P.side * P.side * SLOT_WORDS;
         own.query = query_base(i);
@@ -557,7 +586,7 @@ fn up_window(v: u32, i: u32) -> Window {
         return own_window(v, i);
     }
     let pv = tables[P.off_parents + v];
-    var up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE, 0u);
+    var up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE, 0u, NONE);
     if (P.mesh != 0u) {
         up.slots = P.off_p_slots + pv * P.p_side * P.p_side * SLOT_WORDS;
         up.query = query_base(i) + P.side * P.side * P.dims;
@@ -643,6 +672,43 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     outs[4u * v + 1u] = count;
 }
 
+// The cost of each compared pixel of candidate gid.x of the part's vertex gid.y, own
+// template then parent template, each summed as `cost` would: one invocation per candidate,
+// so that a mesh's few hundred vertices per sub-pass still fill the GPU. `score` then adds
+// them up in order, stopping where the CPU stops.
+@compute @workgroup_size(64)
+fn pixel_costs(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.y;
+    let j = gid.x;
+    if (i >= P.class_count || j >= scratch[meta_base(i)]) {
+        return;
+    }
+    let v = vertex_of(i);
+    let q = scratch[list_base(i) + j] & ~CONTINUES;
+    let out = costs_base(i) + j * pixels();
+    pixel_costs_of(own_window(v, i), level_of(false), i32(q % P.sw), i32(q / P.sw), out);
+    if (P.parent != 0u) {
+        let up = up_window(v, i);
+        pixel_costs_of(up, level_of(true), i32(q % P.sw) / 2, i32(q / P.sw) / 2, out + P.side * P.side);
+    }
+}
+
+// The pixel costs of `win` against the sample at (x, y), into `scratch` from `out`.
+fn pixel_costs_of(win: Window, lv: Level, x: i32, y: i32, out: u32) {
+    let t = win.side;
+    let r = i32(t / 2u);
+    let base = lv.map + map_index(x, y, lv.stride);
+    for (var i = 0u; i < t * t; i = i + 1u) {
+        var s = 0.0;
+        if (tables[win.slots + SLOT_WORDS * i] != SKIP) {
+            let dx = i32(i % t) - r;
+            let dy = i32(i / t) - r;
+            s = pixel_cost(win, i, base + u32((dy * i32(lv.stride) + dx) * i32(P.dims)));
+        }
+        scratch[out + i] = bitcast<u32>(s);
+    }
+}
+
 // Candidates [B.start, B.start + P.batch) of the vertex's, scored against the best so far.
 @compute @workgroup_size(64)
 fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -657,8 +723,8 @@ fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let v = vertex_of(i);
     let current = current_of(v);
-    let own = own_window(v, i);
-    let up = up_window(v, i);
+    var own = own_window(v, i);
+    var up = up_window(v, i);
     let full = scratch[info + 1u] != 0u;
     var best = Best(scratch[info + 2u] != 0u, f(scratch[info + 3u]), scratch[info + 4u]);
     if (!best.found) {
@@ -676,6 +742,10 @@ fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
         } else {
             q = scratch[list + j] & ~CONTINUES;
             continues = (scratch[list + j] & CONTINUES) != 0u;
+        }
+        if (P.split != 0u) {
+            own.costs = costs_base(i) + j * pixels();
+            up.costs = own.costs + P.side * P.side;
         }
         consider(&best, own, up, q, factor_of(q, current, continues));
     }

@@ -122,8 +122,8 @@ pub struct SynthArgs {
     /// adapter; an error where there is none; WGPU_BACKEND=vulkan|gl picks the backend).
     /// The result is the same byte for byte. Passes without a GPU form (all but the
     /// interleaved square-template passes of appearance and tong2002 on a plane, and of
-    /// appearance on a mesh) run on the CPU; auto leaves meshes to the CPU too (a GPU runs
-    /// them no faster than 3 CPU cores). The log and --report say per level which ran where.
+    /// appearance on a mesh) run on the CPU. The log and --report say per level which ran
+    /// where.
     #[arg(long, value_enum, default_value_t = DeviceKind::Auto)]
     device: DeviceKind,
     /// Also write timings, candidate-set sizes and mean best distances per level here.

@@ -16,7 +16,7 @@ use crate::Result;
 pub enum Device {
     /// On a GPU where the machine has a hardware adapter; on the CPU where it has none, or
     /// only a software one (Mesa's lavapipe or llvmpipe, slower than the CPU path), and for
-    /// mesh levels and full-search passes, which the CPU runs faster.
+    /// full-search passes, which the CPU runs faster.
     #[default]
     Auto,
     /// On the CPU.
@@ -27,8 +27,8 @@ pub enum Device {
 
 /// Why [`Device::Auto`] leaves a GPU closed for `preset` on `targets` with `search` asked,
 /// if it does: no pass has a GPU form (an interleaved square-template pass, on a mesh one
-/// whose metric is no Γ), the levels are a mesh's ([`AUTO_MESH`]), or every pass that has a
-/// GPU form runs a full search ([`AUTO_FULL_SEARCH`]).
+/// whose metric is no Γ), or every pass that has one runs a full search
+/// ([`AUTO_FULL_SEARCH`]).
 pub(crate) fn why_auto_keeps_the_cpu(
     targets: &[TargetLevel],
     preset: &Preset,
@@ -45,9 +45,6 @@ pub(crate) fn why_auto_keeps_the_cpu(
     if first.is_none() {
         return Some("no pass has a GPU form");
     }
-    if !plane {
-        return Some(AUTO_MESH);
-    }
     let full = |p: &super::recipe::Pass| pass_search(p, search) == Search::Full;
     (first.is_some_and(full) && passes.all(full)).then_some(AUTO_FULL_SEARCH)
 }
@@ -57,12 +54,6 @@ pub(crate) fn why_auto_keeps_the_cpu(
 /// GPU's cores. A 128² plane with a full search took 34 s on an NVIDIA H200 and 3.8 s on
 /// its host's 16 cores (docs/speed.md).
 const AUTO_FULL_SEARCH: &str = "a full search, which the CPU runs faster";
-
-/// Why [`Device::Auto`] runs mesh levels on the CPU: a mesh's colouring needs some 100
-/// colours (a vertex reads its whole patch), so a sub-pass has a few hundred vertices, one
-/// invocation each. A 250k-vertex surface's synthesis took 7.7 s on an NVIDIA H200, 3.5 s on
-/// its host's 16 cores and 10.4 s on 2 of them (docs/speed.md).
-const AUTO_MESH: &str = "a mesh level, which the GPU runs no faster than 3 CPU cores";
 
 /// Runs the passes that can run on the GPU there, and counts per level which ran where.
 pub(crate) struct Runner {
@@ -191,9 +182,9 @@ mod tests {
 
     /// On a plane, `auto` may open a GPU for the presets with a GPU form (`appearance` and
     /// `tong2002`) under k-coherence, and keeps the CPU for a full search and for the others;
-    /// on a mesh it keeps the CPU.
+    /// on a mesh, only `appearance` has a GPU form.
     #[test]
-    fn auto_keeps_the_cpu_for_meshes_full_searches_and_presets_without_a_gpu_form() {
+    fn auto_keeps_the_cpu_for_full_searches_and_presets_without_a_gpu_form() {
         let plane = grid_levels(32, 32, 2, 5, 3);
         for preset in Preset::all() {
             let has_form = ["appearance", "tong2002"].contains(&preset.name.as_str());
@@ -208,7 +199,11 @@ mod tests {
         let shape = Neighbourhoods::Mesh { template: 5, slots, shift_start: vec![0, 0], shifts: vec![] };
         let mesh = [TargetLevel::new(1, shape)];
         let k = Search::KCoherence { k: 11 };
-        assert_eq!(why_auto_keeps_the_cpu(&mesh, &Preset::appearance(), k), Some(AUTO_MESH));
+        assert_eq!(why_auto_keeps_the_cpu(&mesh, &Preset::appearance(), k), None);
+        assert_eq!(
+            why_auto_keeps_the_cpu(&mesh, &Preset::appearance(), Search::Full),
+            Some(AUTO_FULL_SEARCH)
+        );
         assert_eq!(why_auto_keeps_the_cpu(&mesh, &Preset::tong2002(), k), Some("no pass has a GPU form"));
     }
 }

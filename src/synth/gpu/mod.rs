@@ -177,7 +177,8 @@ struct Params {
     cap_bits: u32,
     entries: u32,
     stride: u32,
-    _pad: [u32; 3],
+    split: u32,
+    _pad: [u32; 2],
 }
 
 /// A grid's shape: columns, rows, template side, whether it wraps.
@@ -242,6 +243,21 @@ struct Form<'a> {
     search: Search,
     colouring: &'a Colouring,
     seed: u64,
+}
+
+impl Form<'_> {
+    /// Pixels of the template and the parent template.
+    fn pixels(&self) -> usize {
+        let square = |s: Shape| s.template() * s.template();
+        square(self.shape) + self.parent.map_or(0, |p| square(p.0))
+    }
+
+    /// Whether each candidate's pixel costs are computed side by side before they are
+    /// summed: on a mesh, whose sub-passes have a few hundred vertices each, under
+    /// k-coherence (a full search's candidates would take too much scratch).
+    fn split(&self) -> bool {
+        self.shape.is_mesh() && matches!(self.search, Search::KCoherence { .. })
+    }
 }
 
 /// The GPU form of `job`, or why it has none.
@@ -351,6 +367,8 @@ struct Table {
     bits: u32,
     entries: usize,
     query: usize,
+    /// Under [`Form::split`]: each entry's pixel costs.
+    costs: usize,
 }
 
 impl Table {
@@ -363,21 +381,19 @@ impl Table {
             _ => 1,
         };
         let entries = (form.shape.most_shifts() * per_shift).max(MIN_ENTRIES);
-        let pixels = |s: Shape| s.template() * s.template();
+        let pixels = form.pixels();
         let query = match form.shape.is_mesh() {
-            true => {
-                let dims = map_of(job.sample, form.metric).map_or(0, |m| m.dims);
-                (pixels(form.shape) + form.parent.map_or(0, |p| pixels(p.0))) * dims
-            }
+            true => pixels * map_of(job.sample, form.metric).map_or(0, |m| m.dims),
             false => 0,
         };
-        Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries, query }
+        let costs = if form.split() { entries * pixels } else { 0 };
+        Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries, query, costs }
     }
 
-    /// Scratch words per invocation (the shader's `P.stride`): table, list, count, best and
-    /// blended vectors.
+    /// Scratch words per invocation (the shader's `P.stride`): table, list, count, best,
+    /// blended vectors and pixel costs.
     fn stride(&self) -> usize {
-        2 * (1 << self.bits) + self.entries + 5 + self.query
+        2 * (1 << self.bits) + self.entries + 5 + self.query + self.costs
     }
 }
 
@@ -440,8 +456,8 @@ fn push_sample(tables: &mut Vec<u32>, s: &SampleLevel, metric: SquareMetric) -> 
 pub struct GpuSynth {
     gpu: Gpu,
     layout: wgpu::BindGroupLayout,
-    /// The shader's entry points: gather, score, finish, apply_counts.
-    pipelines: [wgpu::ComputePipeline; 4],
+    /// The shader's entry points: gather, pixel_costs, score, finish, apply_counts.
+    pipelines: [wgpu::ComputePipeline; 5],
     level: Option<LevelBuffers>,
     /// Whether the adapter is a software one (lavapipe, llvmpipe; see [`chunk_of`]).
     software: bool,
@@ -476,7 +492,7 @@ impl GpuSynth {
                     cache: None,
                 })
             };
-            Ok((layout, ["gather", "score", "finish", "apply_counts"].map(pipeline)))
+            Ok((layout, ["gather", "pixel_costs", "score", "finish", "apply_counts"].map(pipeline)))
         })?;
         let software = gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
         Ok(GpuSynth { gpu, layout, pipelines, level: None, software, stamp: 0 })
@@ -604,22 +620,23 @@ impl GpuSynth {
             }
             queue.write_buffer(&level.counts, 0, bytemuck::cast_slice(&counts));
         }
-        let encoder = self.encode(level, &groups, batches, form.choosy.is_some());
+        let encoder = self.encode(level, &groups, batches, (form.choosy.is_some(), form.split()));
         queue.submit([encoder.finish()]);
         let words = read_words(&self.gpu, &level.readback)?;
         self.gpu.check()?;
         Ok(take_choices(level.vertices, &words, form, state))
     }
 
-    /// The pass's commands: each part of a sub-pass gathers, scores in `batches` batches and
-    /// takes its winners against the counts as the sub-pass found them; then the counts
-    /// move; at the end the state and the outputs are copied for reading.
+    /// The pass's commands: each part of a sub-pass gathers (and, `split`, computes every
+    /// candidate's pixel costs side by side), scores in `batches` batches and takes its
+    /// winners against the counts as the sub-pass found them; then the counts move
+    /// (`choosy`); at the end the state and the outputs are copied for reading.
     fn encode(
         &self,
         level: &LevelBuffers,
         groups: &[(u32, u32)],
         batches: usize,
-        choosy: bool,
+        (choosy, split): (bool, bool),
     ) -> wgpu::CommandEncoder {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
@@ -627,12 +644,19 @@ impl GpuSynth {
                 label: Some("synth sub-passes"),
                 timestamp_writes: None,
             });
-            let [gather, score, finish, apply] = &self.pipelines;
-            let mut run = |pipeline, part: usize, batch: usize| {
+            let [gather, pixel_costs, score, finish, apply] = &self.pipelines;
+            // One invocation per vertex of the part, or (pixel_costs) per candidate (up to
+            // the table's) of each of its vertices.
+            let candidates = (level.key.table.entries as u32).div_ceil(GROUP);
+            let mut run = |pipeline: &wgpu::ComputePipeline, part: usize, batch: usize| {
                 pass.set_pipeline(pipeline);
                 let offsets = [(part as u64 * PARAMS_STRIDE) as u32, (batch as u64 * PARAMS_STRIDE) as u32];
                 pass.set_bind_group(0, &level.bind_group, &offsets);
-                pass.dispatch_workgroups(groups[part].0, groups[part].1, 1);
+                let (x, y) = match pipeline == pixel_costs {
+                    true => (candidates, level.parts[part].2),
+                    false => groups[part],
+                };
+                pass.dispatch_workgroups(x, y, 1);
             };
             let mut first = 0;
             for class in level.parts.chunk_by(|a, b| a.0 == b.0) {
@@ -640,6 +664,9 @@ impl GpuSynth {
                 first = parts.end;
                 for part in parts.clone() {
                     run(gather, part, 0);
+                    if split {
+                        run(pixel_costs, part, 0);
+                    }
                     (0..batches).for_each(|b| run(score, part, b));
                     run(finish, part, 0);
                 }
@@ -799,10 +826,8 @@ fn parts_of(colouring: &Colouring, chunk: usize) -> Vec<(usize, u32, u32)> {
 /// each template pixel, and each of its map's values), and the most dispatches a pass may
 /// need.
 fn batching(job: &PassJob, form: &Form, dims: usize) -> (u32, usize) {
-    let per_pixel = if form.metric == SquareMetric::Gamma { 1 } else { 1 + dims };
-    let g = form.shape.template();
-    let pixels = g * g + form.parent.map_or(0, |p| p.0.template() * p.0.template());
-    let batch = (LOOP_BUDGET / (pixels * per_pixel + 16)).max(1) as u32;
+    let per_pixel = if form.metric == SquareMetric::Gamma || form.split() { 1 } else { 1 + dims };
+    let batch = (LOOP_BUDGET / (form.pixels() * per_pixel + 16)).max(1) as u32;
     let most =
         full_candidates(job.sample, job.target.template / 2).len().max(Table::of(job, form).entries) as u32;
     (batch, most.div_ceil(batch) as usize)
@@ -856,6 +881,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
         _ => 0,
     };
     params.batch = level.batch;
+    params.split = form.split().into();
     let most = match form.search {
         Search::Full => params.full_count.max(1),
         _ => form.shape.most_shifts() as u32 * params.list_k.max(1),
