@@ -1,7 +1,8 @@
 //! Where a synthesis runs its passes: on the CPU, or on a GPU through wgpu compute
 //! ([`super::gpu`], feature `gpu`). The GPU runs the passes that have a GPU form (interleaved
-//! square-template passes, on meshes those without Γ; see [`super::gpu`]) and gives the CPU's coordinates to
-//! the bit; every other pass runs on the CPU, and each level's report says which ran where.
+//! square-template passes, on meshes those without Γ; see [`super::gpu`]) and gives the
+//! CPU's coordinates to the bit; every other pass runs on the CPU, and each level's report
+//! says which ran where.
 
 use super::candidates::Search;
 use super::engine::{PassStats, State};

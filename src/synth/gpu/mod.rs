@@ -20,7 +20,7 @@
 //! like them — every own pixel compared ([`Mask::Full`]), with or without a parent template
 //! (narrow or wide), the Γ, appearance or colour metric, argmin or choosy selection,
 //! k-coherence or full search; on a mesh the same without Γ (`appearance`), each template
-//! pixel blending up to three vertices' vectors as [`known_parts`] weighs them. Anything
+//! pixel blending up to three vertices' vectors as `metric::known_parts` weighs them. Anything
 //! else (Γ on a mesh, sequential orders, round or isotropic neighbourhoods, masked
 //! templates, the use penalty, kd-trees) has no GPU form and runs on the CPU (each level's
 //! report says which, and why).
@@ -1069,5 +1069,31 @@ mod tests {
                 assert_eq!(usage.factor(0, [0, 0], 0).to_bits(), table[m - 1].to_bits(), "own use, m = {m}");
             }
         }
+    }
+
+    /// A plane's smallest table keeps the sizes the shader had before tables grew (1,024
+    /// slots, 640 entries); dispatches are 4,096 vertices on a software adapter and fill
+    /// `HARDWARE_SCRATCH` on a hardware one, in whole workgroups, within the binding limit.
+    #[test]
+    fn dispatches_fit_their_scratch_in_whole_workgroups() {
+        let plane = Table { bits: 10, entries: MIN_ENTRIES, query: 0, costs: 0 };
+        assert_eq!(plane.stride(), 2693);
+        let mesh = Table { bits: 11, entries: 1200, query: 612, costs: 1200 * 34 };
+        let limits = wgpu::Limits { max_storage_buffer_binding_size: 4 << 30, ..wgpu::Limits::default() };
+        let limits = wgpu::Limits { max_buffer_size: 4 << 30, ..limits };
+        for table in [plane, mesh] {
+            let bytes = table.stride() as u64 * 4;
+            assert_eq!(chunk_of(true, &limits, table), SOFTWARE_CHUNK);
+            let hardware = chunk_of(false, &limits, table);
+            assert_eq!(hardware % GROUP as usize, 0);
+            assert!(hardware as u64 * bytes <= HARDWARE_SCRATCH, "{table:?}");
+            assert!((hardware + GROUP as usize) as u64 * bytes > HARDWARE_SCRATCH, "{table:?}");
+            // A device whose bindings hold 64 MiB gets smaller dispatches, software or not.
+            let small = wgpu::Limits { max_storage_buffer_binding_size: 64 << 20, ..limits.clone() };
+            for software in [true, false] {
+                assert!(chunk_of(software, &small, table) as u64 * bytes <= 64 << 20, "{table:?}");
+            }
+        }
+        assert_eq!(chunk_of(false, &limits, plane), 49_792);
     }
 }
