@@ -594,10 +594,11 @@ fn up_window(v: u32, i: u32) -> Window {
     return up;
 }
 
-// The vertex's forward shifts (Coherence::gather): each window vertex's coordinate shifted
-// back by its offset, where it lands on a candidate texel, all marked in the table; then its
-// candidates: the first list_k entries of each shift's list, each texel once, in gathering
-// order (or, for a full search, every candidate texel, listed in `tables`).
+// The vertex's forward shifts (Coherence::gather): each window vertex's (on a mesh, patch
+// vertex's) coordinate shifted back by its offset, where it lands on a candidate texel, all
+// marked in the table; then its candidates: the first list_k entries of each shift's list,
+// each texel once, in gathering order (or, for a full search, every candidate texel, listed
+// in `tables`); on a mesh, last, its templates' blended vectors.
 @compute @workgroup_size(64)
 fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index_of(gid);
