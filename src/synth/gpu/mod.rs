@@ -243,6 +243,8 @@ struct Form<'a> {
     search: Search,
     colouring: &'a Colouring,
     seed: u64,
+    /// [`Shape::most_shifts`] of `shape`, counted once (a mesh's is a pass over its vertices).
+    most_shifts: usize,
 }
 
 impl Form<'_> {
@@ -290,7 +292,8 @@ fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
         }
         _ => None,
     };
-    let form = Form { metric, shape, parent, choosy, search, colouring, seed };
+    let most_shifts = shape.most_shifts();
+    let form = Form { metric, shape, parent, choosy, search, colouring, seed, most_shifts };
     fits_the_shader(job, &form)?;
     Ok(form)
 }
@@ -380,7 +383,7 @@ impl Table {
             Search::KCoherence { k } => k.min(job.sample.k) + 1,
             _ => 1,
         };
-        let entries = (form.shape.most_shifts() * per_shift).max(MIN_ENTRIES);
+        let entries = (form.most_shifts * per_shift).max(MIN_ENTRIES);
         let pixels = form.pixels();
         let query = match form.shape.is_mesh() {
             true => pixels * map_of(job.sample, form.metric).map_or(0, |m| m.dims),
@@ -884,7 +887,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
     params.split = form.split().into();
     let most = match form.search {
         Search::Full => params.full_count.max(1),
-        _ => form.shape.most_shifts() as u32 * params.list_k.max(1),
+        _ => form.most_shifts as u32 * params.list_k.max(1),
     };
     (params, (most.div_ceil(level.batch) as usize).min(level.batches))
 }
