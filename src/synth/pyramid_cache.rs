@@ -1,7 +1,8 @@
 //! A surface pyramid's costly parts kept between runs ([`crate::cache`]): each level's
 //! remeshing and its templates with their links to the coarser level.
 //!
-//! A remeshing depends on the input mesh and the remeshing's target only; templates and
+//! A remeshing depends on the input mesh and the remeshing's target only (a refined level,
+//! on the input, the coarser level it refines and its edge length); templates and
 //! links on the level's and the coarser level's meshes, frames and texels and on the
 //! template sizes. Their keys hash exactly those, so a run with another analysis of the same
 //! size, another preset or another seed finds the remeshing, and one whose frames are the
@@ -11,7 +12,7 @@
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::cache::{CacheDir, Fnv1a, Kind, Source};
 use crate::mesh::frames::Frames;
-use crate::mesh::remesh::RemeshParams;
+use crate::mesh::remesh::{RemeshParams, REFINE_ITERATIONS};
 use crate::mesh::Mesh;
 use crate::Result;
 
@@ -37,6 +38,18 @@ pub fn remesh_key(mesh: &Mesh, target: &RemeshParams) -> u64 {
     h.write(&target.target_edge_length.to_le_bytes());
     h.write(&(target.iterations as u64).to_le_bytes());
     h.write(&target.vertex_count.map_or(u64::MAX, |n| n as u64).to_le_bytes());
+    h.finish()
+}
+
+/// The key of `coarse`, a remeshing of `reference`, refined at edge length `length`
+/// ([`crate::mesh::remesh::refine`]).
+pub fn refine_key(reference: &Mesh, coarse: &Mesh, length: f32) -> u64 {
+    let mut h = Fnv1a::of_kind(REMESH);
+    h.write(b"refined");
+    hash_mesh(&mut h, reference);
+    hash_mesh(&mut h, coarse);
+    h.write(&length.to_le_bytes());
+    h.write(&(REFINE_ITERATIONS as u64).to_le_bytes());
     h.finish()
 }
 
@@ -67,15 +80,15 @@ fn hash_shape(h: &mut Fnv1a, shape: LevelShape) {
     h.write(&shape.texel.to_le_bytes());
 }
 
-/// `mesh` remeshed by `remesh`, through `cache` where one is given.
+/// A remeshing made by `remesh`, whose key ([`remesh_key`], [`refine_key`]) is `key`,
+/// through `cache` where one is given.
 pub fn remeshed(
     cache: Option<&CacheDir>,
-    mesh: &Mesh,
-    target: &RemeshParams,
+    key: u64,
     remesh: impl FnOnce() -> Result<Mesh>,
 ) -> Result<(Mesh, Source)> {
     let Some(cache) = cache else { return Ok((remesh()?, Source::Computed)) };
-    cache.get_or_compute((REMESH, remesh_key(mesh, target)), decode_mesh, remesh, encode_mesh)
+    cache.get_or_compute((REMESH, key), decode_mesh, remesh, encode_mesh)
 }
 
 /// A level's templates and links built by `build`, through `cache` where one is given.
@@ -319,5 +332,14 @@ mod tests {
         assert_ne!(templates_key(shape, 7, Some((shape, 3))), key);
         let target = RemeshParams::edge_length(0.01);
         assert_ne!(remesh_key(&mesh, &target), remesh_key(&mesh, &RemeshParams::edge_length(0.02)));
+        let refined = refine_key(&mesh, &mesh, 0.01);
+        assert_ne!(refined, remesh_key(&mesh, &target));
+        assert_ne!(refined, refine_key(&mesh, &mesh, 0.02));
+        let moved = Mesh::from_valid_parts(
+            mesh.positions().iter().map(|&p| p * 1.001).collect(),
+            mesh.triangles().to_vec(),
+        );
+        assert_ne!(refined, refine_key(&mesh, &moved, 0.01));
+        assert_ne!(refined, refine_key(&moved, &mesh, 0.01));
     }
 }

@@ -1,11 +1,12 @@
 //! Surface mode: a surface texton map on a triangle mesh (Tong §5). The mesh is remeshed so
 //! that one edge is one sample texel on the finest level and twice as long on each coarser
-//! level (independent remeshes, about a quarter of the vertices each); every level gets
+//! level (the coarsest remeshed from the input, each finer one refining the one above, with
+//! four times its vertices); every level gets
 //! tangent frames, templates and forward shifts, finer levels are linked to coarser ones,
 //! and the engine runs coarse to fine. Output: a binary PLY of the finest mesh.
 
 use super::engine::State;
-use super::pyramid_cache::{remeshed, templates, templates_key, LevelShape};
+use super::pyramid_cache::{refine_key, remesh_key, remeshed, templates, templates_key, LevelShape};
 use super::round::{MarchedLevel, MarchingCache};
 use super::surface::{link_levels, surface_level};
 use super::target::TargetLevel;
@@ -15,7 +16,7 @@ use crate::cache::{CacheDir, Source};
 use crate::mesh::field::{frames, Orientation};
 use crate::mesh::frames::Frames;
 use crate::mesh::ply::{self, PropertyData, VertexProperty};
-use crate::mesh::remesh::{edge_length_stats, remesh, EdgeLengthStats, RemeshParams};
+use crate::mesh::remesh::{edge_length_stats, refine, remesh, EdgeLengthStats, RemeshParams};
 use crate::mesh::Mesh;
 use crate::progress::{Progress, Silent};
 use crate::{Error, Result};
@@ -162,13 +163,26 @@ pub fn build_pyramid_cached(
     }
     check_memory(estimate)?;
     let input = PyramidInput { mesh, density, texel, orientation, params, cache };
-    // Each level is remeshed from the input on its own. The finest, four times the next,
-    // takes most of the time and little of its remeshing runs in parallel, so the coarser
-    // levels are remeshed and given their templates on the other core meanwhile (without
-    // a progress bar of their own: they end first).
-    let (finest, coarser) = rayon::join(|| input.level(0, progress), || input.coarser_levels(levels));
-    let mut built = vec![finest?];
-    built.extend(coarser?);
+    // Only the coarsest level is remeshed from the input; each finer one refines the level
+    // above it. The finest, four times the next, takes most of the time, so the coarser
+    // levels get their templates on the other core meanwhile (without a progress bar of
+    // their own: they end first).
+    let mut coarser = input.coarser_meshes(levels)?;
+    // A copy, as the templates are added to the levels beside the refinement.
+    let above = coarser.first().map(|b| b.level.mesh.clone());
+    let finest = match &above {
+        Some(above) => {
+            let (finest, templates) = rayon::join(
+                || input.level(0, Some(above), progress),
+                || (0..coarser.len()).try_for_each(|l| input.add_templates(&mut coarser, l)),
+            );
+            templates?;
+            finest?
+        }
+        None => input.level(0, None, progress)?,
+    };
+    let mut built = vec![finest];
+    built.extend(coarser);
     input.add_templates(&mut built, 0)?;
     let mut seconds = [0.0; 3];
     for b in &built {
@@ -214,17 +228,25 @@ struct BuiltLevel {
 }
 
 impl PyramidInput<'_> {
-    /// Level `l` remeshed, with its frames.
-    fn level(&self, l: usize, progress: &dyn Progress) -> Result<BuiltLevel> {
+    /// Level `l` with its frames: the level `above` it refined, or at the coarsest level the
+    /// input remeshed.
+    fn level(&self, l: usize, above: Option<&Mesh>, progress: &dyn Progress) -> Result<BuiltLevel> {
         let started = Instant::now();
         let edge = self.texel * (1 << l) as f32;
-        // A vertex budget is steered towards as the remesher runs; a scale is a length.
-        let target = match self.density {
-            Density::Vertices(n) => RemeshParams::vertex_count(self.mesh, (n >> (2 * l)).max(4)),
-            _ => RemeshParams::edge_length(edge),
+        let (remeshed, source) = match above {
+            Some(above) => {
+                let key = refine_key(self.mesh, above, edge);
+                remeshed(self.cache, key, || refine(above, self.mesh, edge, progress))?
+            }
+            None => {
+                // A vertex budget is steered towards as the remesher runs; a scale is a length.
+                let target = match self.density {
+                    Density::Vertices(n) => RemeshParams::vertex_count(self.mesh, (n >> (2 * l)).max(4)),
+                    _ => RemeshParams::edge_length(edge),
+                };
+                remeshed(self.cache, remesh_key(self.mesh, &target), || remesh(self.mesh, &target, progress))?
+            }
         };
-        let (remeshed, source) =
-            remeshed(self.cache, self.mesh, &target, || remesh(self.mesh, &target, progress))?;
         let remeshed = remeshed.with_normals();
         let remesh_seconds = started.elapsed().as_secs_f64();
         let started = Instant::now();
@@ -239,12 +261,15 @@ impl PyramidInput<'_> {
         })
     }
 
-    /// Levels 1 to `levels − 1`, each with its templates.
-    fn coarser_levels(&self, levels: usize) -> Result<Vec<BuiltLevel>> {
-        let mut built = (1..levels).map(|l| self.level(l, &Silent)).collect::<Result<Vec<_>>>()?;
-        for l in 0..built.len() {
-            self.add_templates(&mut built, l)?;
+    /// Levels 1 to `levels − 1` (finest first) with their frames: the coarsest remeshed
+    /// from the input, each finer one refining the one above.
+    fn coarser_meshes(&self, levels: usize) -> Result<Vec<BuiltLevel>> {
+        let mut built: Vec<BuiltLevel> = Vec::new();
+        for l in (1..levels).rev() {
+            let level = self.level(l, built.last().map(|b| &b.level.mesh), &Silent)?;
+            built.push(level);
         }
+        built.reverse();
         Ok(built)
     }
 
