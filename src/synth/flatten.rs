@@ -168,16 +168,51 @@ impl Patch {
     }
 }
 
+/// The part of the tangent plane a flattened patch must cover, about its vertex.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Cover {
+    /// A disc of this radius (round neighbourhoods' circles).
+    Disc(f32),
+    /// A square of this half-side, its sides along s and t (square templates): 2/π of the
+    /// disc around it, and so about half the faces to unfold and resample.
+    Square(f32),
+}
+
+impl Cover {
+    /// The radius of the disc about the vertex that holds the cover.
+    fn radius(self) -> f32 {
+        match self {
+            Cover::Disc(r) => r,
+            Cover::Square(half) => half * std::f32::consts::SQRT_2,
+        }
+    }
+
+    /// Whether a flattened triangle may overlap the cover, so that its neighbours are
+    /// worth flattening too. The faces a convex cover about the vertex overlaps are joined
+    /// across edges that it overlaps, so the growth reaches all of them.
+    fn may_overlap(self, patch: &Patch, face: [u32; 3], corners: &[Vec2; 3]) -> bool {
+        match self {
+            Cover::Disc(reach) => within_reach(patch, face, corners, reach),
+            Cover::Square(half) => {
+                let (lo, hi) = corners
+                    .iter()
+                    .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+                lo.x <= half && hi.x >= -half && lo.y <= half && hi.y >= -half
+            }
+        }
+    }
+}
+
 /// Flattens the triangles around `v` into `patch` (Tong §5.1 after Turk / Wei-Levoy): the
 /// one-ring by a discrete exponential map, then breadth-first across shared edges, each new
-/// vertex placed rigidly against the edge it was reached over, until the triangles lie
-/// beyond `reach` (plus one edge) of `v`.
+/// vertex placed rigidly against the edge it was reached over, as long as the triangles
+/// may overlap `cover` (the last ones reached may lie beyond it).
 pub(super) fn flatten(
     mesh: &Mesh,
     frames: &Frames,
     topology: &Topology,
     v: u32,
-    reach: f32,
+    cover: Cover,
     patch: &mut Patch,
 ) {
     patch.restart();
@@ -192,8 +227,8 @@ pub(super) fn flatten(
     while let Some(f) = queue.pop_front() {
         let Some(corners) = patch.corners(mesh, f) else { continue };
         patch.faces.push((f, corners));
-        if !within_reach(patch, mesh.triangles()[f as usize], &corners, reach)
-            || !within_reach_in_space(mesh, topology, f, v, reach)
+        if !cover.may_overlap(patch, mesh.triangles()[f as usize], &corners)
+            || !within_reach_in_space(mesh, topology, f, v, cover.radius())
         {
             continue;
         }
@@ -206,8 +241,7 @@ pub(super) fn flatten(
     }
 }
 
-/// Whether a flattened triangle may still reach into the template, so that its
-/// neighbours are worth flattening too.
+/// Whether a flattened triangle may still reach into a disc of radius `reach`.
 ///
 /// The test is `nearest <= reach + longest` with every distance as `distance` rounds it,
 /// taken in fewer square roots: the longest edge is not needed where the nearest corner

@@ -21,7 +21,7 @@ pub mod cache;
 
 pub use cache::{MarchingCache, MarchingOrigin, MarchingSource};
 
-use super::flatten::{barycentric, flatten, slot, Patch, Topology};
+use super::flatten::{barycentric, flatten, slot, Cover, Patch, Topology};
 use super::sample::AppearanceMap;
 use super::slot::{Slot, OUTSIDE};
 use crate::mesh::frames::Frames;
@@ -152,7 +152,7 @@ impl SurfaceMarching {
             .map_init(
                 || Patch::new(mesh),
                 |patch, v| {
-                    flatten(mesh, &reference_frames, &topology, v as u32, reach, patch);
+                    flatten(mesh, &reference_frames, &topology, v as u32, Cover::Disc(reach), patch);
                     (1..=stencil.circles).map(|c| circle_arcs(mesh, patch, c as f32 * texel)).collect()
                 },
             )

@@ -8,7 +8,7 @@
 //! (dx, dy) = (i − r, j − r) texels; x runs along s and y runs *down* t (image rows), so the
 //! surface point of offset (dx, dy) is `v + texel·(dx·s − dy·t)`.
 
-use super::flatten::{barycentric, flatten, slot, Patch, Topology};
+use super::flatten::{barycentric, flatten, slot, Cover, Patch, Topology};
 use super::slot::OUTSIDE;
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::mesh::bvh::TriangleBvh;
@@ -35,9 +35,9 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
     }
     let topology = Topology::new(mesh);
     let r = template / 2;
-    // A triangle can overlap the template's square only if one of its corners lies within
-    // the square's circumradius plus one of its edges.
-    let reach = r as f32 * texel * std::f32::consts::SQRT_2;
+    // The template's pixels, with room for a pixel that the barycentric test finds inside a
+    // face a rounding error beyond the square.
+    let cover = Cover::Square((r as f32 + 0.05) * texel);
     // Each vertex's slots go straight to their place in the level's array: a copy from
     // per-vertex vectors had doubled the memory of the finest level's templates.
     let mut slots = vec![Slot::DEFAULT; mesh.vertex_count() * template * template];
@@ -47,7 +47,7 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
         .map_init(
             || Patch::new(mesh),
             |patch, (v, vertex_slots)| {
-                flatten(mesh, frames, &topology, v as u32, reach, patch);
+                flatten(mesh, frames, &topology, v as u32, cover, patch);
                 resample(mesh, patch, v as u32, texel, r, vertex_slots);
                 patch_shifts(patch, texel, r)
             },
@@ -245,6 +245,48 @@ pub(crate) mod tests {
 
     fn interior(w: u32, h: u32, margin: u32) -> impl Iterator<Item = usize> {
         (margin..h - margin).flat_map(move |y| (margin..w - margin).map(move |x| (y * w + x) as usize))
+    }
+
+    /// Where unfolding is exact (a plane with jittered vertices), a template flattened over
+    /// its square resamples the same pixels and forward shifts as one flattened over the
+    /// disc around the square, from fewer faces.
+    #[test]
+    fn a_square_cover_resamples_what_the_disc_around_it_does() {
+        let (grid, frames) = flat_grid(20, 20, 1.0);
+        let jitter =
+            |i: usize, k: u32| ((i as u32).wrapping_mul(2_654_435_761).rotate_left(k) % 1000) as f32 / 1000.0;
+        let positions = grid
+            .positions()
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p + Vec3::new(jitter(i, 0) - 0.5, jitter(i, 11) - 0.5, 0.0) * 0.4)
+            .collect();
+        let mesh = Mesh::new(positions, grid.triangles().to_vec()).expect("still valid");
+        let (topology, r, texel) = (Topology::new(&mesh), 3, 0.9);
+        let (mut square, mut disc) = (Patch::new(&mesh), Patch::new(&mesh));
+        let (mut fewer, side) = (0, 2 * r + 1);
+        for v in interior(20, 20, 7) {
+            let v = v as u32;
+            flatten(&mesh, &frames, &topology, v, Cover::Square((r as f32 + 0.05) * texel), &mut square);
+            flatten(&mesh, &frames, &topology, v, Cover::Disc(r as f32 * texel * 1.5), &mut disc);
+            let slots = |patch: &Patch| {
+                let mut slots = vec![Slot::DEFAULT; side * side];
+                resample(&mesh, patch, v, texel, r, &mut slots);
+                slots
+            };
+            for (a, b) in slots(&square).iter().zip(&slots(&disc)) {
+                assert_eq!(a.vertices, b.vertices, "vertex {v}");
+                assert!(a.weights.iter().zip(&b.weights).all(|(x, y)| (x - y).abs() < 1e-5), "vertex {v}");
+            }
+            let shifts = |patch: &Patch| {
+                let mut shifts = patch_shifts(patch, texel, r);
+                shifts.sort_by_key(|s| s.0);
+                shifts
+            };
+            assert_eq!(shifts(&square), shifts(&disc), "vertex {v}");
+            fewer += usize::from(square.faces.len() < disc.faces.len());
+        }
+        assert_eq!(fewer, 36, "every vertex's square patch holds fewer faces");
     }
 
     #[test]
