@@ -92,6 +92,12 @@ fn opaque(x: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(x) ^ P.zero);
 }
 
+// A squared distance's four lanes (term j in lane j mod 4, each in order) summed as the
+// CPU's metric::lane_ssd sums them, (0 + 2) + (1 + 3).
+fn lane_sum(lanes: vec4<f32>) -> f32 {
+    return (lanes.x + lanes.z) + (lanes.y + lanes.w);
+}
+
 // a mod n in [0, n), for n > 0. In unsigned arithmetic: GLSL leaves % of a negative
 // operand undefined, and naga's GL backend writes WGSL's % as GLSL's.
 fn rem_euclid(a: i32, n: i32) -> i32 {
@@ -296,12 +302,12 @@ fn cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f3
         } else {
             let o = base + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
             let q = lv.map + map_index(i32(packed & 0xffffu), i32(packed >> 16u), lv.stride);
-            var s = 0.0;
+            var lanes = vec4<f32>(0.0);
             for (var j = 0u; j < P.dims; j = j + 1u) {
                 let e = f(tables[o + j]) - f(tables[q + j]);
-                s = s + opaque(e * e);
+                lanes[j % 4u] = lanes[j % 4u] + opaque(e * e);
             }
-            d = d + s;
+            d = d + lane_sum(lanes);
         }
         if (bounded && d > bound) {
             break;
@@ -354,12 +360,12 @@ fn prepare(win: Window, lv: Level) {
 // One pixel's cost on a mesh (appearance or colour SSD): its blended vector against the
 // sample's at `o`, the terms summed in AppearanceMetric::cost's order.
 fn pixel_cost(win: Window, i: u32, o: u32) -> f32 {
-    var s = 0.0;
+    var lanes = vec4<f32>(0.0);
     for (var j = 0u; j < P.dims; j = j + 1u) {
         let e = f(tables[o + j]) - f(scratch[win.query + i * P.dims + j]);
-        s = s + opaque(e * e);
+        lanes[j % 4u] = lanes[j % 4u] + opaque(e * e);
     }
-    return s;
+    return lane_sum(lanes);
 }
 
 // `cost` on a mesh, against the vectors `prepare` blended; under P.split from the pixel

@@ -191,7 +191,7 @@ impl Metric for AppearanceMetric<'_> {
 
     fn texel_distance(&self, a: [i32; 2], b: [i32; 2]) -> f32 {
         let (va, vb) = (self.map.at(a[0] as i64, a[1] as i64), self.map.at(b[0] as i64, b[1] as i64));
-        va.iter().zip(vb).map(|(x, y)| (x - y) * (x - y)).sum()
+        lane_ssd(va, vb)
     }
 
     fn cost(&self, query: &Vectors, x: i64, y: i64, bound: f32) -> f32 {
@@ -204,7 +204,7 @@ impl Metric for AppearanceMetric<'_> {
                 let mut d = 0.0;
                 for (&offset, target) in query.offsets.iter().zip(query.values.chunks_exact(dims)) {
                     let o = (base + offset) as usize;
-                    d += values[o..o + dims].iter().zip(target).map(|(a, b)| (a - b) * (a - b)).sum::<f32>();
+                    d += lane_ssd(&values[o..o + dims], target);
                     if d > bound {
                         break;
                     }
@@ -230,6 +230,28 @@ fn push_vector(values: &mut Vec<f32>, vector: &[f32]) {
     }
 }
 
+/// The squared distance of two vectors, term k added into lane k mod 4 (each lane in
+/// order) and the lanes summed as (0 + 2) + (1 + 3): the order of four-wide SIMD, which
+/// the compiler then uses without reassociating anything, where one running sum made each
+/// pixel a chain of dependent additions (a quarter of a mesh's synthesis). The GPU passes
+/// (`shaders/synth_pass.wgsl`, `lane_sum`) add in the same order, for the same bits.
+#[inline(always)]
+fn lane_ssd(a: &[f32], b: &[f32]) -> f32 {
+    let mut lanes = [0.0f32; 4];
+    let (whole, rest) = (a.len() / 4 * 4, a.len() % 4);
+    for (x, y) in a[..whole].chunks_exact(4).zip(b[..whole].chunks_exact(4)) {
+        for l in 0..4 {
+            let e = x[l] - y[l];
+            lanes[l] += e * e;
+        }
+    }
+    for l in 0..rest {
+        let e = a[whole + l] - b[whole + l];
+        lanes[l] += e * e;
+    }
+    (lanes[0] + lanes[2]) + (lanes[1] + lanes[3])
+}
+
 /// [`AppearanceMetric::cost`] with `D` values per vector known to the compiler (colours and
 /// the analysis' usual appearance dimensions), so that each pixel's sum is unrolled and its
 /// slices unchecked: the candidate loop's cost was a quarter of a plane synthesis. Each
@@ -241,7 +263,7 @@ fn ssd_within<const D: usize>(values: &[f32], base: isize, query: &Vectors, boun
         let o = (base + offset) as usize;
         let vector: &[f32; D] = values[o..o + D].try_into().expect("a slice of D values");
         let target: &[f32; D] = target.try_into().expect("a chunk of D values");
-        d += vector.iter().zip(target).map(|(a, b)| (a - b) * (a - b)).sum::<f32>();
+        d += lane_ssd(vector, target);
         if d > bound {
             break;
         }
