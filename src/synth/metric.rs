@@ -233,7 +233,7 @@ fn push_vector(values: &mut Vec<f32>, vector: &[f32]) {
 /// The squared distance of two vectors, term k added into lane k mod 4 (each lane in
 /// order) and the lanes summed as (0 + 2) + (1 + 3): the order of four-wide SIMD, which
 /// the compiler then uses without reassociating anything, where one running sum made each
-/// pixel a chain of dependent additions (a quarter of a mesh's synthesis). The GPU passes
+/// pixel a chain of dependent additions (a quarter of the CPU of a 250k-vertex surface run). The GPU passes
 /// (`shaders/synth_pass.wgsl`, `lane_sum`) add in the same order, for the same bits.
 #[inline(always)]
 fn lane_ssd(a: &[f32], b: &[f32]) -> f32 {

@@ -1,9 +1,9 @@
 //! Surface mode: a surface texton map on a triangle mesh (Tong §5). The mesh is remeshed so
 //! that one edge is one sample texel on the finest level and twice as long on each coarser
 //! level (the coarsest remeshed from the input, each finer one refining the one above, with
-//! four times its vertices); every level gets
-//! tangent frames, templates and forward shifts, finer levels are linked to coarser ones,
-//! and the engine runs coarse to fine. Output: a binary PLY of the finest mesh.
+//! four times its vertices); every level gets tangent frames, templates and forward shifts,
+//! finer levels are linked to coarser ones, and the engine runs coarse to fine. Output: a
+//! binary PLY of the finest mesh.
 
 use super::engine::State;
 use super::pyramid_cache::{refine_key, remesh_key, remeshed, templates, templates_key, LevelShape};
