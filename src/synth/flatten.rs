@@ -194,9 +194,7 @@ impl Cover {
         match self {
             Cover::Disc(reach) => within_reach(patch, face, corners, reach),
             Cover::Square(half) => {
-                let (lo, hi) = corners
-                    .iter()
-                    .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+                let (lo, hi) = bounds(corners);
                 lo.x <= half && hi.x >= -half && lo.y <= half && hi.y >= -half
             }
         }
@@ -317,6 +315,11 @@ fn place_apex(mesh: &Mesh, topology: &Topology, g: u32, patch: &mut Patch) {
         patch.place(c, pa + direction.rotate(turn) * length);
         return;
     }
+}
+
+/// The least and greatest coordinates of `points` (their bounding box).
+pub(super) fn bounds(points: &[Vec2]) -> (Vec2, Vec2) {
+    points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
 }
 
 /// Barycentric weights of `q` in triangle `t`, if it lies inside (weights clamped to ≥ 0

@@ -8,7 +8,7 @@
 //! (dx, dy) = (i − r, j − r) texels; x runs along s and y runs *down* t (image rows), so the
 //! surface point of offset (dx, dy) is `v + texel·(dx·s − dy·t)`.
 
-use super::flatten::{barycentric, flatten, slot, Cover, Patch, Topology};
+use super::flatten::{barycentric, bounds, flatten, slot, Cover, Patch, Topology};
 use super::slot::OUTSIDE;
 use super::target::{Neighbourhoods, ParentLink, Shift, Slot, TargetLevel};
 use crate::mesh::bvh::TriangleBvh;
@@ -86,15 +86,13 @@ fn resample(mesh: &Mesh, patch: &Patch, v: u32, texel: f32, r: usize, slots: &mu
     // corner beyond it on one side holds no pixel, and half the patch is such faces.
     let beyond = (r + 1) as f32 * texel * (1.0 + 1e-5);
     for &(f, corners) in &patch.faces {
-        let (lo, hi) =
-            corners.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        let (lo, hi) = bounds(&corners);
         if lo.x > beyond || hi.x < -beyond || lo.y > beyond || hi.y < -beyond {
             continue;
         }
         // Corners in texel offsets: x along s, y down t.
         let offsets = corners.map(|c| Vec2::new(c.x / texel, -c.y / texel));
-        let lo = offsets.iter().fold(Vec2::INFINITY, |m, &o| m.min(o));
-        let hi = offsets.iter().fold(Vec2::NEG_INFINITY, |m, &o| m.max(o));
+        let (lo, hi) = bounds(&offsets);
         let (x0, x1) = (floor_to_i64(lo.x).max(-ri), ceil_to_i64(hi.x).min(ri));
         let (y0, y1) = (floor_to_i64(lo.y).max(-ri), ceil_to_i64(hi.y).min(ri));
         for dy in y0..=y1 {
