@@ -18,7 +18,8 @@ use crate::Result;
 
 // Version 2: remeshed vertices come in spatial order (`mesh::layout`).
 const REMESH: Kind = Kind { magic: b"BTFREMSH", version: 2, name: "remesh" };
-const TEMPLATES: Kind = Kind { magic: b"BTFTMPLT", version: 1, name: "templates" };
+// Version 2: parent templates are narrowed from the coarser level's own patches.
+const TEMPLATES: Kind = Kind { magic: b"BTFTMPLT", version: 2, name: "templates" };
 
 /// One level's mesh, frames and texel size: what its templates are flattened from.
 #[derive(Clone, Copy)]

@@ -176,6 +176,41 @@ fn patch_shifts(patch: &Patch, texel: f32, r: usize) -> Vec<Shift> {
         .collect()
 }
 
+/// `level`'s mesh templates narrowed to `template` (odd, at most theirs): the centre of
+/// each square and the forward shifts inside it. They are what [`surface_level`] resamples
+/// from the same patches, since a pixel takes the first patch face that holds it however
+/// wide the square is: a finer level's parent templates come from its coarser level's own
+/// patches, flattened once.
+pub fn narrowed(level: &TargetLevel, template: usize) -> Result<TargetLevel> {
+    let Neighbourhoods::Mesh { template: wide, slots, shift_start, shifts } = &level.neighbourhoods else {
+        return Err(Error::invalid("only a mesh level's templates are narrowed"));
+    };
+    let wide = *wide;
+    if template % 2 == 0 || template > wide {
+        return Err(Error::invalid(format!("cannot narrow {wide}-wide templates to {template}")));
+    }
+    let (margin, limit) = ((wide - template) / 2, (template / 2) as f32 + SQUARE_TOLERANCE);
+    let narrow_slots = slots
+        .chunks_exact(wide * wide)
+        .flat_map(|square| square.chunks_exact(wide).skip(margin).take(template))
+        .flat_map(|row| &row[margin..margin + template])
+        .copied()
+        .collect();
+    let (mut narrow_start, mut narrow_shifts) = (vec![0u32], Vec::new());
+    for range in shift_start.windows(2) {
+        let inside = |s: &&Shift| s.1[0].abs() <= limit && s.1[1].abs() <= limit;
+        narrow_shifts.extend(shifts[range[0] as usize..range[1] as usize].iter().filter(inside));
+        narrow_start.push(narrow_shifts.len() as u32);
+    }
+    let neighbourhoods = Neighbourhoods::Mesh {
+        template,
+        slots: narrow_slots,
+        shift_start: narrow_start,
+        shifts: narrow_shifts,
+    };
+    Ok(TargetLevel::new(level.vertices, neighbourhoods))
+}
+
 /// Links each vertex of `fine_level` to the coarser level (Tong §5.1, multi-resolution):
 /// its parent is a corner of the coarse triangle nearest to it, with the offset from that
 /// corner in fine texels, and its parent template is that corner's template in
@@ -415,6 +450,29 @@ pub(crate) mod tests {
         let texel = edges.iter().map(|[a, b]| p[*a as usize].distance(p[*b as usize])).sum::<f32>()
             / edges.len() as f32;
         (mesh, frames, texel)
+    }
+
+    /// Narrowed templates are the narrow square resampled from the wide square's patches,
+    /// to the bit, slots and shifts alike; and narrowing to the same width keeps a level.
+    #[test]
+    fn narrowed_templates_resample_the_wide_templates_patches() {
+        let (mesh, frames, texel) = bunny();
+        let wide = surface_level(&mesh, &frames, texel, 7).expect("valid");
+        assert_eq!(narrowed(&wide, 7).expect("no narrower"), wide);
+        let narrow = narrowed(&wide, 3).expect("narrower");
+        let (topology, mut patch) = (Topology::new(&mesh), Patch::new(&mesh));
+        let (mut slot_scratch, mut shift_scratch) = (Vec::new(), Vec::new());
+        for v in 0..mesh.vertex_count() {
+            flatten(&mesh, &frames, &topology, v as u32, Cover::Square(3.05 * texel), &mut patch);
+            let mut slots = vec![Slot::DEFAULT; 9];
+            resample(&mesh, &patch, v as u32, texel, 1, &mut slots);
+            assert_eq!(narrow.slots_of(v, &mut slot_scratch), &slots[..], "vertex {v}");
+            assert_eq!(
+                narrow.neighbourhoods.shifts(v, &mut shift_scratch),
+                &patch_shifts(&patch, texel, 1)[..]
+            );
+        }
+        assert!(narrowed(&wide, 9).is_err() && narrowed(&wide, 4).is_err());
     }
 
     #[test]

@@ -8,7 +8,7 @@
 use super::engine::State;
 use super::pyramid_cache::{refine_key, remesh_key, remeshed, templates, templates_key, LevelShape};
 use super::round::{MarchedLevel, MarchingCache};
-use super::surface::{link_levels, surface_level};
+use super::surface::{link_levels, narrowed, surface_level};
 use super::target::TargetLevel;
 use super::{synthesize, LevelReport, Sample, SynthParams};
 use crate::analysis::knn::parent_size;
@@ -174,7 +174,7 @@ pub fn build_pyramid_cached(
         Some(above) => {
             let (finest, templates) = rayon::join(
                 || input.level(0, Some(above), progress),
-                || (0..coarser.len()).try_for_each(|l| input.add_templates(&mut coarser, l)),
+                || (0..coarser.len()).rev().try_for_each(|l| input.add_templates(&mut coarser, l)),
             );
             templates?;
             finest?
@@ -273,10 +273,13 @@ impl PyramidInput<'_> {
         Ok(built)
     }
 
-    /// Gives `built[l]` its templates (the level after it is the next coarser, if any).
+    /// Gives `built[l]` its templates (the level after it is the next coarser, if any, and
+    /// has its own already).
     fn add_templates(&self, built: &mut [BuiltLevel], l: usize) -> Result<()> {
         let started = Instant::now();
-        let (target, source) = self.templates(&built[l].level, built.get(l + 1).map(|b| &b.level))?;
+        let coarse =
+            built.get(l + 1).map(|b| (&b.level, b.target.as_ref().expect("coarser levels come first")));
+        let (target, source) = self.templates(&built[l].level, coarse)?;
         built[l].seconds[2] = started.elapsed().as_secs_f64();
         built[l].target = Some(target);
         built[l].sources[1] = source;
@@ -284,15 +287,20 @@ impl PyramidInput<'_> {
     }
 
     /// The templates of level `fine` and, below the coarsest level, its links to `coarse`
-    /// and its parent templates, through the cache where one is given.
-    fn templates(&self, fine: &MeshLevel, coarse: Option<&MeshLevel>) -> Result<(TargetLevel, Source)> {
+    /// and its parent templates (narrowed from the coarse level's own), through the cache
+    /// where one is given.
+    fn templates(
+        &self,
+        fine: &MeshLevel,
+        coarse: Option<(&MeshLevel, &TargetLevel)>,
+    ) -> Result<(TargetLevel, Source)> {
         let template = self.params.neighborhood;
         let parent_template = parent_size(template);
-        let key = templates_key(fine.shape(), template, coarse.map(|c| (c.shape(), parent_template)));
+        let key = templates_key(fine.shape(), template, coarse.map(|(c, _)| (c.shape(), parent_template)));
         templates(self.cache, key, || {
             let mut target = surface_level(&fine.mesh, &fine.frames, fine.texel, template)?;
-            if let Some(c) = coarse {
-                let coarse_templates = surface_level(&c.mesh, &c.frames, c.texel, parent_template)?;
+            if let Some((c, coarse_own)) = coarse {
+                let coarse_templates = narrowed(coarse_own, parent_template)?;
                 link_levels(
                     &fine.mesh,
                     &fine.frames,
