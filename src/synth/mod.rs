@@ -62,6 +62,7 @@ use recipe::pass_search;
 use round::{RoundSample, RoundStencil};
 use round_pass::RoundTarget;
 use square_pass::{Parent, SquareMatch};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 use target::TargetLevel;
 
@@ -152,107 +153,126 @@ pub fn synthesize(
     let mut state: Option<State> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;
-    for l in (0..=coarsest).rev() {
-        let started = Instant::now();
-        let recipe = if l == coarsest { &preset.coarsest } else { &preset.finer };
-        let (target, level_sample) = (&targets[l], &levels[l]);
-        let coarse = state.take();
-        let mut turns = None;
-        let mut current = match (recipe.start, &coarse) {
-            (Start::Inherit | Start::Jittered { .. }, Some(coarse)) => {
-                let inherited = match coarse_turns.take() {
-                    Some(coarse_turns) => {
-                        let (inherited, level_turns) =
-                            isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
-                        turns = Some(level_turns);
-                        inherited
-                    }
-                    None => start::inherit(target, coarse, level_sample, r),
-                };
-                match recipe.start {
-                    Start::Jittered { texels } => {
-                        start::jitter(inherited, level_sample, r, texels, rng.random())
-                    }
-                    _ => inherited,
-                }
+    // The greedy colouring of a level runs on one core (on the finest level of a 250k
+    // surface for a third of a second): the finer levels' are built beside the coarser
+    // levels' passes, and a level whose colouring is not done yet builds or awaits it.
+    let colourings: Vec<OnceLock<Option<Colouring>>> = targets.iter().map(|_| OnceLock::new()).collect();
+    let interleaves =
+        |recipe: &recipe::LevelRecipe| recipe.passes.iter().any(|p| p.order == VisitOrder::Interleaved);
+    rayon::in_place_scope(|scope| -> Result<(State, Vec<LevelReport>)> {
+        if interleaves(&preset.finer) {
+            for (colouring, target) in colourings.iter().zip(targets).take(coarsest) {
+                scope.spawn(move |_| {
+                    colouring.get_or_init(|| Colouring::of(target));
+                });
             }
-            (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
-            (Start::Patches { radius }, _) => {
-                // A patch narrower than the template is all seam: the templates that judge
-                // its placement mostly see its neighbours (and a small periodic sample's
-                // phases then never line up).
-                let patch = (radius * level_sample.width.min(level_sample.height) as f32).max((r + 1) as f32);
-                let search = capped(
-                    recipe.passes.first().map_or(params.search, |p| pass_search(p, params.search)),
-                    level_sample,
-                );
-                let k = search.list_length(level_sample);
-                let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
-                patches(metric, target, level_sample, (r, patch, k), &mut rng)?
-            }
-            (Start::Inherit | Start::Jittered { .. }, None) => {
-                unreachable!("checked above: the coarsest level does not inherit")
-            }
-        };
-        let mut stats = PassStats::default();
-        let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
-        let isotropic_level =
-            recipe.passes.iter().any(|p| matches!(p.neighbourhood, Neighbourhood::Isotropic { .. }));
-        let turns =
-            isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
-        let iso = match &turns {
-            Some(turns) => Some(isotropic_inputs(recipe, target, level_sample, turns)?),
-            None => None,
-        };
-        let interleaved = recipe.passes.iter().any(|p| p.order == VisitOrder::Interleaved);
-        let colouring = interleaved.then(|| Colouring::of(target)).flatten();
-        for p in &recipe.passes {
-            let schedule = match (&colouring, p.order) {
-                (Some(colouring), VisitOrder::Interleaved) => {
-                    Schedule::Interleaved { colouring, seed: rng.random() }
-                }
-                _ => Schedule::Order(visit_order(
-                    target,
-                    p.order,
-                    sweep.as_ref().map(|s| s[l].as_slice()),
-                    &mut rng,
-                )),
-            };
-            let level = LevelInputs {
-                targets,
-                levels,
-                l,
-                coarse: coarse.as_ref(),
-                rounds: rounds.as_ref(),
-                iso: iso.as_ref(),
-            };
-            let job = job::PassJob {
-                pass: p,
-                search: capped(pass_search(p, params.search), level_sample),
-                level: l,
-                target,
-                coarser: targets.get(l + 1),
-                sample: level_sample,
-                coarse_sample: levels.get(l + 1),
-                coarse: coarse.as_ref(),
-                schedule: &schedule,
-            };
-            stats = match runner.pass(&job, &mut current)? {
-                Some(stats) => stats,
-                None => run_pass(p, &level, &mut current, params, &schedule, &mut rng)?,
-            };
-            progress.advance(1);
         }
-        let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
-        let mut level_report = report(l, target, passes, started.elapsed(), stats);
-        level_report.device = Some(runner.level_done());
-        reports.push(level_report);
-        state = Some(current);
-        drop(iso);
-        coarse_turns = turns;
-    }
-    progress.finish();
-    Ok((state.expect("at least one level"), reports))
+        for l in (0..=coarsest).rev() {
+            let started = Instant::now();
+            let recipe = if l == coarsest { &preset.coarsest } else { &preset.finer };
+            let (target, level_sample) = (&targets[l], &levels[l]);
+            let coarse = state.take();
+            let mut turns = None;
+            let mut current = match (recipe.start, &coarse) {
+                (Start::Inherit | Start::Jittered { .. }, Some(coarse)) => {
+                    let inherited = match coarse_turns.take() {
+                        Some(coarse_turns) => {
+                            let (inherited, level_turns) =
+                                isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
+                            turns = Some(level_turns);
+                            inherited
+                        }
+                        None => start::inherit(target, coarse, level_sample, r),
+                    };
+                    match recipe.start {
+                        Start::Jittered { texels } => {
+                            start::jitter(inherited, level_sample, r, texels, rng.random())
+                        }
+                        _ => inherited,
+                    }
+                }
+                (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
+                (Start::Patches { radius }, _) => {
+                    // A patch narrower than the template is all seam: the templates that judge
+                    // its placement mostly see its neighbours (and a small periodic sample's
+                    // phases then never line up).
+                    let patch =
+                        (radius * level_sample.width.min(level_sample.height) as f32).max((r + 1) as f32);
+                    let search = capped(
+                        recipe.passes.first().map_or(params.search, |p| pass_search(p, params.search)),
+                        level_sample,
+                    );
+                    let k = search.list_length(level_sample);
+                    let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
+                    patches(metric, target, level_sample, (r, patch, k), &mut rng)?
+                }
+                (Start::Inherit | Start::Jittered { .. }, None) => {
+                    unreachable!("checked above: the coarsest level does not inherit")
+                }
+            };
+            let mut stats = PassStats::default();
+            let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
+            let isotropic_level =
+                recipe.passes.iter().any(|p| matches!(p.neighbourhood, Neighbourhood::Isotropic { .. }));
+            let turns =
+                isotropic_level.then(|| turns.unwrap_or_else(|| isotropic::Turns::zeros(target.vertices)));
+            let iso = match &turns {
+                Some(turns) => Some(isotropic_inputs(recipe, target, level_sample, turns)?),
+                None => None,
+            };
+            let colouring = if interleaves(recipe) {
+                colourings[l].get_or_init(|| Colouring::of(target)).as_ref()
+            } else {
+                None
+            };
+            for p in &recipe.passes {
+                let schedule = match (colouring, p.order) {
+                    (Some(colouring), VisitOrder::Interleaved) => {
+                        Schedule::Interleaved { colouring, seed: rng.random() }
+                    }
+                    _ => Schedule::Order(visit_order(
+                        target,
+                        p.order,
+                        sweep.as_ref().map(|s| s[l].as_slice()),
+                        &mut rng,
+                    )),
+                };
+                let level = LevelInputs {
+                    targets,
+                    levels,
+                    l,
+                    coarse: coarse.as_ref(),
+                    rounds: rounds.as_ref(),
+                    iso: iso.as_ref(),
+                };
+                let job = job::PassJob {
+                    pass: p,
+                    search: capped(pass_search(p, params.search), level_sample),
+                    level: l,
+                    target,
+                    coarser: targets.get(l + 1),
+                    sample: level_sample,
+                    coarse_sample: levels.get(l + 1),
+                    coarse: coarse.as_ref(),
+                    schedule: &schedule,
+                };
+                stats = match runner.pass(&job, &mut current)? {
+                    Some(stats) => stats,
+                    None => run_pass(p, &level, &mut current, params, &schedule, &mut rng)?,
+                };
+                progress.advance(1);
+            }
+            let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
+            let mut level_report = report(l, target, passes, started.elapsed(), stats);
+            level_report.device = Some(runner.level_done());
+            reports.push(level_report);
+            state = Some(current);
+            drop(iso);
+            coarse_turns = turns;
+        }
+        progress.finish();
+        Ok((state.expect("at least one level"), reports))
+    })
 }
 
 /// What a pass on level `l` reads besides its own state.
