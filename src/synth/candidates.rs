@@ -103,6 +103,11 @@ impl Coherence {
                 continue;
             }
             let pixel = sample.candidate_pixel(x, y, radius);
+            // Where the neighbours are coherent, most shifts land on a pixel already seen,
+            // whose whole list is in already.
+            if self.shift_stamp[pixel] == self.visit {
+                continue;
+            }
             self.shift_stamp[pixel] = self.visit;
             for &q in sample.list(pixel, k, two_level) {
                 if self.stamp[q as usize] != self.visit {

@@ -165,7 +165,12 @@ impl Usage {
             UsageRule::Argmin => 1.0,
             UsageRule::FairShare { fair, strength } => {
                 let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
-                let excess = ((n - own) as f32 / fair - 1.0).max(0.0);
+                let uses = (n - own) as f32;
+                // Within its fair share (as most texels are) the excess below is 0: no division.
+                if uses <= fair {
+                    return 1.0;
+                }
+                let excess = (uses / fair - 1.0).max(0.0);
                 1.0 + strength * excess * excess
             }
             // Beyond 2^60 no distance ratio matters; the cap keeps the power finite.

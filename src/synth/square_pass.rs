@@ -119,7 +119,9 @@ impl<M: Metric> VertexMatch for SquareMatch<'_, M> {
         let score = |q: u32, bound: f32| -> f32 {
             let (x, y) = ((q as usize % width) as i64, (q as usize / width) as i64);
             let factor = factor(q);
-            let bound = bound / factor;
+            // A factor of 1 (a texel within its fair share) leaves bound and distance as they
+            // are: no division.
+            let bound = if factor == 1.0 { bound } else { bound / factor };
             let mut d = metric.cost(own, x, y, bound);
             if let (Some(p), true) = (parent, d < bound) {
                 d += p.metric.cost(up, x / 2, y / 2, bound - d);
