@@ -214,8 +214,8 @@ pub fn narrowed(level: &TargetLevel, template: usize) -> Result<TargetLevel> {
 /// Links each vertex of `fine_level` to the coarser level (Tong §5.1, multi-resolution):
 /// its parent is a corner of the coarse triangle nearest to it, with the offset from that
 /// corner in fine texels, and its parent template is that corner's template in
-/// `coarse_parent_templates` (a [`surface_level`] of `coarse` at twice `fine_texel`, which
-/// the fine level keeps).
+/// `coarse_parent_templates` (templates of `coarse` at twice `fine_texel`, such as
+/// [`narrowed`] from its own; the fine level keeps them).
 ///
 /// Tong casts along the normal; the nearest point is used instead because it always
 /// exists (a ray can miss a coarse mesh that lies just inside a convex fine surface, or
