@@ -166,11 +166,12 @@ impl Usage {
             UsageRule::FairShare { fair, strength } => {
                 let own = u32::from(current[1] as usize * self.width + current[0] as usize == q as usize);
                 let uses = (n - own) as f32;
-                // Within its fair share (as most texels are) the excess below is 0: no division.
+                // Within its fair share (as most texels are) the excess is 0: no division.
+                // Beyond it the quotient is at least 1, as division by fair keeps the order.
                 if uses <= fair {
                     return 1.0;
                 }
-                let excess = (uses / fair - 1.0).max(0.0);
+                let excess = uses / fair - 1.0;
                 1.0 + strength * excess * excess
             }
             // Beyond 2^60 no distance ratio matters; the cap keeps the power finite.

@@ -35,9 +35,7 @@ pub fn surface_level(mesh: &Mesh, frames: &Frames, texel: f32, template: usize) 
     }
     let topology = Topology::new(mesh);
     let r = template / 2;
-    // The template's pixels, with room for a pixel that the barycentric test finds inside a
-    // face a rounding error beyond the square.
-    let cover = Cover::Square((r as f32 + 0.05) * texel);
+    let cover = square_cover(r, texel);
     // Each vertex's slots go straight to their place in the level's array: a copy from
     // per-vertex vectors had doubled the memory of the finest level's templates.
     let mut slots = vec![Slot::DEFAULT; mesh.vertex_count() * template * template];
@@ -161,17 +159,28 @@ fn ceil_to_i64(x: f32) -> i64 {
     whole.saturating_add(((whole as f32) < x) as i64)
 }
 
+/// What a patch must cover for a template of `r` texels each way: its pixels, with room
+/// for a pixel that the barycentric test finds inside a face a rounding error beyond them.
+fn square_cover(r: usize, texel: f32) -> Cover {
+    Cover::Square((r as f32 + 0.05) * texel)
+}
+
+/// Whether a patch vertex at `offset` (in texels) lies in a template of `r` texels each way.
+fn in_square(offset: [f32; 2], r: usize) -> bool {
+    let limit = r as f32 + SQUARE_TOLERANCE;
+    offset[0].abs() <= limit && offset[1].abs() <= limit
+}
+
 /// The patch vertices inside the template's square with their offsets in texels (the
 /// centre first, at offset 0).
 fn patch_shifts(patch: &Patch, texel: f32, r: usize) -> Vec<Shift> {
-    let limit = r as f32 + SQUARE_TOLERANCE;
     patch
         .order
         .iter()
         .filter_map(|&u| {
             let c = patch.uv_of(u)?;
             let offset = [c.x / texel, -c.y / texel];
-            (offset[0].abs() <= limit && offset[1].abs() <= limit).then_some((u, offset))
+            in_square(offset, r).then_some((u, offset))
         })
         .collect()
 }
@@ -189,7 +198,7 @@ pub fn narrowed(level: &TargetLevel, template: usize) -> Result<TargetLevel> {
     if template % 2 == 0 || template > wide {
         return Err(Error::invalid(format!("cannot narrow {wide}-wide templates to {template}")));
     }
-    let (margin, limit) = ((wide - template) / 2, (template / 2) as f32 + SQUARE_TOLERANCE);
+    let margin = (wide - template) / 2;
     let narrow_slots = slots
         .chunks_exact(wide * wide)
         .flat_map(|square| square.chunks_exact(wide).skip(margin).take(template))
@@ -198,7 +207,7 @@ pub fn narrowed(level: &TargetLevel, template: usize) -> Result<TargetLevel> {
         .collect();
     let (mut narrow_start, mut narrow_shifts) = (vec![0u32], Vec::new());
     for range in shift_start.windows(2) {
-        let inside = |s: &&Shift| s.1[0].abs() <= limit && s.1[1].abs() <= limit;
+        let inside = |s: &&Shift| in_square(s.1, template / 2);
         narrow_shifts.extend(shifts[range[0] as usize..range[1] as usize].iter().filter(inside));
         narrow_start.push(narrow_shifts.len() as u32);
     }
@@ -326,7 +335,7 @@ pub(crate) mod tests {
         let (mut fewer, side) = (0, 2 * r + 1);
         for v in interior(20, 20, 7) {
             let v = v as u32;
-            flatten(&mesh, &frames, &topology, v, Cover::Square((r as f32 + 0.05) * texel), &mut square);
+            flatten(&mesh, &frames, &topology, v, square_cover(r, texel), &mut square);
             flatten(&mesh, &frames, &topology, v, Cover::Disc(r as f32 * texel * 1.5), &mut disc);
             let slots = |patch: &Patch| {
                 let mut slots = vec![Slot::DEFAULT; side * side];
@@ -463,7 +472,7 @@ pub(crate) mod tests {
         let (topology, mut patch) = (Topology::new(&mesh), Patch::new(&mesh));
         let (mut slot_scratch, mut shift_scratch) = (Vec::new(), Vec::new());
         for v in 0..mesh.vertex_count() {
-            flatten(&mesh, &frames, &topology, v as u32, Cover::Square(3.05 * texel), &mut patch);
+            flatten(&mesh, &frames, &topology, v as u32, square_cover(3, texel), &mut patch);
             let mut slots = vec![Slot::DEFAULT; 9];
             resample(&mesh, &patch, v as u32, texel, 1, &mut slots);
             assert_eq!(narrow.slots_of(v, &mut slot_scratch), &slots[..], "vertex {v}");
