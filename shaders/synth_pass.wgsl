@@ -59,8 +59,11 @@ struct Params {
     // scratch words in all (2 · 2^cap_bits + entries + 5).
     cap_bits: u32, entries: u32, stride: u32,
     // On a mesh under k-coherence: each candidate's pixel costs are computed side by side
-    // (`pixel_costs`) before `score` sums them in order.
-    split: u32, _pad0: u32, _pad1: u32,
+    // (`pixel_costs`) before `score` sums them in order. On a mesh, the scratch words per
+    // template pixel that `prepare` leaves; the default texton (outside the patch) of the
+    // sample level and of the parent's.
+    split: u32, query_words: u32, fallback: u32, p_fallback: u32,
+    _pad0: u32, _pad1: u32, _pad2: u32,
 }
 
 // A score dispatch's candidates: [start, start + P.batch) of each vertex's.
@@ -264,6 +267,7 @@ struct Level {
     map: u32,
     stride: u32,
     size: vec3<u32>,     // width, height, textons
+    fallback: u32,       // the default texton, for a mesh pixel's part outside the patch
 }
 
 fn cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
@@ -339,11 +343,15 @@ fn part(slot: u32, a: u32, j: u32, lv: Level, on_coarse: bool) -> f32 {
     return opaque(f(tables[slot + 3u + a]) * f(tables[m + j]));
 }
 
-// The blended vectors of `win`'s mesh pixels into `scratch` at win.query: each compared
-// pixel's vector is the blend of its vertices' vectors, AppearanceMetric::prepare's sum in
-// its order (the parts unrolled: llvmpipe counts loop iterations). Once per vertex, before
-// its candidates are scored.
+// What each candidate compares `win`'s mesh pixels with, into `scratch` at win.query, once
+// per vertex before its candidates are scored: under Γ each compared pixel's textons and
+// s·s, else its vertices' vectors blended, AppearanceMetric::prepare's sum in its order (the
+// parts unrolled: llvmpipe counts loop iterations).
 fn prepare(win: Window, lv: Level) {
+    if (P.metric == 0u) {
+        prepare_terms(win, lv);
+        return;
+    }
     for (var i = 0u; i < win.side * win.side; i = i + 1u) {
         let slot = win.slots + SLOT_WORDS * i;
         if (tables[slot] == SKIP) {
@@ -357,6 +365,78 @@ fn prepare(win: Window, lv: Level) {
     }
 }
 
+// The texton of part `a` of the mesh pixel at `slot`: its vertex's label, or the level's
+// default texton outside the patch (or for a part the pixel lacks, whose weight is 0).
+fn part_texton(slot: u32, a: u32, lv: Level, on_coarse: bool) -> u32 {
+    let u = tables[slot + a];
+    if (u == OUTSIDE) {
+        return lv.fallback;
+    }
+    if (on_coarse) {
+        return coarse[2u * u + 1u];
+    }
+    return state[2u * u + 1u];
+}
+
+// Γ(a, b) on level `lv`.
+fn gamma_of(lv: Level, a: u32, b: u32) -> f32 {
+    return f(tables[lv.gamma + a * lv.size.z + b]);
+}
+
+// GammaMetric::prepare's terms of `win`'s mesh pixels: each compared pixel's three textons
+// and s·s = Σₐ Σ_b wₐ w_b Γ(tₐ, t_b), in its order. A part the pixel lacks has weight 0 and
+// adds only zeros, which change no sum.
+fn prepare_terms(win: Window, lv: Level) {
+    for (var i = 0u; i < win.side * win.side; i = i + 1u) {
+        let slot = win.slots + SLOT_WORDS * i;
+        if (tables[slot] == SKIP) {
+            continue;
+        }
+        let t = vec3<u32>(part_texton(slot, 0u, lv, win.coarse), part_texton(slot, 1u, lv, win.coarse),
+            part_texton(slot, 2u, lv, win.coarse));
+        let w = vec3<f32>(f(tables[slot + 3u]), f(tables[slot + 4u]), f(tables[slot + 5u]));
+        let ss = ss_row(ss_row(ss_row(0.0, lv, w, t, 0u), lv, w, t, 1u), lv, w, t, 2u);
+        let q = win.query + 4u * i;
+        scratch[q] = t[0];
+        scratch[q + 1u] = t[1];
+        scratch[q + 2u] = t[2];
+        scratch[q + 3u] = bitcast<u32>(ss);
+    }
+}
+
+// `ss` plus row `a` of s·s's terms, wₐ w_b Γ(tₐ, t_b) for b = 0, 1, 2 (unrolled, as
+// llvmpipe counts loop iterations).
+fn ss_row(ss: f32, lv: Level, w: vec3<f32>, t: vec3<u32>, a: u32) -> f32 {
+    return ((ss + opaque((w[a] * w[0]) * gamma_of(lv, t[a], t[0])))
+        + opaque((w[a] * w[1]) * gamma_of(lv, t[a], t[1])))
+        + opaque((w[a] * w[2]) * gamma_of(lv, t[a], t[2]));
+}
+
+// One mesh pixel's cost under Γ (GammaMetric::cost's term): its prepared textons and s·s
+// against the sample's texton t at (x, y), s·t summed over the parts in order.
+fn term_cost(win: Window, lv: Level, i: u32, x: i32, y: i32) -> f32 {
+    let slot = win.slots + SLOT_WORDS * i;
+    let q = win.query + 4u * i;
+    let t = label_at(lv.labels, x, y, lv.size.x, lv.size.y);
+    let st = ((0.0 + opaque(f(tables[slot + 3u]) * gamma_of(lv, scratch[q], t)))
+        + opaque(f(tables[slot + 4u]) * gamma_of(lv, scratch[q + 1u], t)))
+        + opaque(f(tables[slot + 5u]) * gamma_of(lv, scratch[q + 2u], t));
+    return (f(scratch[q + 3u]) - 2.0 * st) + gamma_of(lv, t, t);
+}
+
+// Mesh pixel i's cost against the sample neighbourhood centred at (x, y), under the pass's
+// metric.
+fn mesh_pixel_cost(win: Window, lv: Level, i: u32, x: i32, y: i32) -> f32 {
+    let r = i32(win.side / 2u);
+    let dx = i32(i % win.side) - r;
+    let dy = i32(i / win.side) - r;
+    if (P.metric == 0u) {
+        return term_cost(win, lv, i, x + dx, y + dy);
+    }
+    let o = lv.map + map_index(x, y, lv.stride) + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
+    return pixel_cost(win, i, o);
+}
+
 // One pixel's cost on a mesh (appearance or colour SSD): its blended vector against the
 // sample's at `o`, the terms summed in AppearanceMetric::cost's order.
 fn pixel_cost(win: Window, i: u32, o: u32) -> f32 {
@@ -368,35 +448,25 @@ fn pixel_cost(win: Window, i: u32, o: u32) -> f32 {
     return lane_sum(lanes);
 }
 
-// `cost` on a mesh, against the vectors `prepare` blended; under P.split from the pixel
-// costs `pixel_costs` left (a pixel not compared left 0, which changes no sum).
+// `cost` on a mesh, against what `prepare` left; under P.split from the pixel costs
+// `pixel_costs` left (a pixel not compared left 0, which changes no sum). Under Γ, at least
+// 0, as GammaMetric::cost returns.
 fn mesh_cost(win: Window, lv: Level, x: i32, y: i32, bounded: bool, bound: f32) -> f32 {
-    if (win.costs != NONE) {
-        var d = 0.0;
-        for (var i = 0u; i < win.side * win.side; i = i + 1u) {
-            d = d + f(scratch[win.costs + i]);
-            if (bounded && d > bound) {
-                break;
-            }
-        }
-        return d;
-    }
-    let t = win.side;
-    let r = i32(t / 2u);
     var d = 0.0;
-    let base = lv.map + map_index(x, y, lv.stride);
-    for (var i = 0u; i < t * t; i = i + 1u) {
-        let slot = win.slots + SLOT_WORDS * i;
-        if (tables[slot] == SKIP) {
+    for (var i = 0u; i < win.side * win.side; i = i + 1u) {
+        if (win.costs != NONE) {
+            d = d + f(scratch[win.costs + i]);
+        } else if (tables[win.slots + SLOT_WORDS * i] != SKIP) {
+            d = d + mesh_pixel_cost(win, lv, i, x, y);
+        } else {
             continue;
         }
-        let dx = i32(i % t) - r;
-        let dy = i32(i / t) - r;
-        let o = base + u32((dy * i32(lv.stride) + dx) * i32(P.dims));
-        d = d + pixel_cost(win, i, o);
         if (bounded && d > bound) {
             break;
         }
+    }
+    if (P.metric == 0u) {
+        return max(d, 0.0);
     }
     return d;
 }
@@ -467,9 +537,9 @@ fn consider(best: ptr<function, Best>, own: Window, up: Window, q: u32, factor: 
 // The sample level the vertex's own template (or its parent template) is compared on.
 fn level_of(parent: bool) -> Level {
     if (parent) {
-        return Level(P.off_p_labels, P.off_p_gamma, P.off_p_map, P.p_map_stride, vec3<u32>(P.p_sw, P.p_sh, P.p_textons));
+        return Level(P.off_p_labels, P.off_p_gamma, P.off_p_map, P.p_map_stride, vec3<u32>(P.p_sw, P.p_sh, P.p_textons), P.p_fallback);
     }
-    return Level(P.off_labels, P.off_gamma, P.off_map, P.map_stride, vec3<u32>(P.sw, P.sh, P.textons));
+    return Level(P.off_labels, P.off_gamma, P.off_map, P.map_stride, vec3<u32>(P.sw, P.sh, P.textons), P.fallback);
 }
 
 // selection_factor: the choosy penalty times the coherence bias on a fresh copy.
@@ -564,7 +634,7 @@ fn list_base(i: u32) -> u32 {
 fn meta_base(i: u32) -> u32 {
     return i * P.stride + (2u << P.cap_bits) + P.entries;
 }
-// On a mesh: the blended vectors of the vertex's template, then of its parent template.
+// On a mesh: what `prepare` leaves of the vertex's template, then of its parent template.
 fn query_base(i: u32) -> u32 {
     return meta_base(i) + 5u;
 }
@@ -574,7 +644,7 @@ fn pixels() -> u32 {
 }
 // Under P.split: per candidate, its pixel costs (own template, then parent template).
 fn costs_base(i: u32) -> u32 {
-    return query_base(i) + pixels() * P.dims;
+    return query_base(i) + pixels() * P.query_words;
 }
 
 // Invocation i's vertex v's template (and parent template, or a copy of the own where there
@@ -595,7 +665,7 @@ fn up_window(v: u32, i: u32) -> Window {
     var up = Window(i32(pv), P.p_side, vec3<u32>(P.p_grid_w, P.p_grid_h, P.p_wraps), true, NONE, 0u, NONE);
     if (P.mesh != 0u) {
         up.slots = P.off_p_slots + pv * P.p_side * P.p_side * SLOT_WORDS;
-        up.query = query_base(i) + P.side * P.side * P.dims;
+        up.query = query_base(i) + P.side * P.side * P.query_words;
     }
     return up;
 }
@@ -702,15 +772,10 @@ fn pixel_costs(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // The pixel costs of `win` against the sample at (x, y), into `scratch` from `out`.
 fn pixel_costs_of(win: Window, lv: Level, x: i32, y: i32, out: u32) {
-    let t = win.side;
-    let r = i32(t / 2u);
-    let base = lv.map + map_index(x, y, lv.stride);
-    for (var i = 0u; i < t * t; i = i + 1u) {
+    for (var i = 0u; i < win.side * win.side; i = i + 1u) {
         var s = 0.0;
         if (tables[win.slots + SLOT_WORDS * i] != SKIP) {
-            let dx = i32(i % t) - r;
-            let dy = i32(i / t) - r;
-            s = pixel_cost(win, i, base + u32((dy * i32(lv.stride) + dx) * i32(P.dims)));
+            s = mesh_pixel_cost(win, lv, i, x, y);
         }
         scratch[out + i] = bitcast<u32>(s);
     }

@@ -121,9 +121,8 @@ pub struct SynthArgs {
     /// full, which the CPU runs faster), cpu, or gpu (any wgpu
     /// adapter; an error where there is none; WGPU_BACKEND=vulkan|gl picks the backend).
     /// The result is the same byte for byte. Passes without a GPU form (all but the
-    /// interleaved square-template passes of appearance and tong2002 on a plane, and of
-    /// appearance on a mesh) run on the CPU. The log and --report say per level which ran
-    /// where.
+    /// interleaved square-template passes of appearance and tong2002, on a plane or a mesh)
+    /// run on the CPU. The log and --report say per level which ran where.
     #[arg(long, value_enum, default_value_t = DeviceKind::Auto)]
     device: DeviceKind,
     /// Also write timings, candidate-set sizes and mean best distances per level here.

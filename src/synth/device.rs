@@ -1,15 +1,14 @@
 //! Where a synthesis runs its passes: on the CPU, or on a GPU through wgpu compute
 //! ([`super::gpu`], feature `gpu`). The GPU runs the passes that have a GPU form (interleaved
-//! square-template passes, on meshes those without Γ; see [`super::gpu`]) and gives the
+//! square-template passes, on planes and meshes; see [`super::gpu`]) and gives the
 //! CPU's coordinates to the bit; every other pass runs on the CPU, and each level's report
 //! says which ran where.
 
 use super::candidates::Search;
 use super::engine::{PassStats, State};
 use super::job::PassJob;
-use super::neighbourhood::{Neighbourhood, SquareMetric};
+use super::neighbourhood::Neighbourhood;
 use super::recipe::{pass_search, Preset, VisitOrder};
-use super::target::{Neighbourhoods, TargetLevel};
 use crate::Result;
 
 /// Where synthesis passes run.
@@ -26,21 +25,13 @@ pub enum Device {
     Gpu,
 }
 
-/// Why [`Device::Auto`] leaves a GPU closed for `preset` on `targets` with `search` asked,
-/// if it does: no pass has a GPU form (an interleaved square-template pass, on a mesh one
-/// whose metric is no Γ), or every pass that has one runs a full search
+/// Why [`Device::Auto`] leaves a GPU closed for `preset` with `search` asked,
+/// if it does: no pass has a GPU form (an interleaved square-template pass), or every pass
+/// that has one runs a full search
 /// ([`AUTO_FULL_SEARCH`]).
-pub(crate) fn why_auto_keeps_the_cpu(
-    targets: &[TargetLevel],
-    preset: &Preset,
-    search: Search,
-) -> Option<&'static str> {
-    let plane = targets.iter().any(|t| matches!(t.neighbourhoods, Neighbourhoods::Grid { .. }));
-    let mut passes = preset.all_passes().filter(|p| match p.neighbourhood {
-        Neighbourhood::Square { metric, .. } => {
-            p.order == VisitOrder::Interleaved && (plane || metric != SquareMetric::Gamma)
-        }
-        _ => false,
+pub(crate) fn why_auto_keeps_the_cpu(preset: &Preset, search: Search) -> Option<&'static str> {
+    let mut passes = preset.all_passes().filter(|p| {
+        matches!(p.neighbourhood, Neighbourhood::Square { .. }) && p.order == VisitOrder::Interleaved
     });
     let first = passes.next();
     if first.is_none() {
@@ -179,32 +170,20 @@ fn open_gpu(device: Device, keep: Option<&'static str>) -> Result<(Option<super:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::target::grid_levels;
 
-    /// On a plane, `auto` may open a GPU for the presets with a GPU form (`appearance` and
-    /// `tong2002`) under k-coherence, and keeps the CPU for a full search and for the others;
-    /// on a mesh, only `appearance` has a GPU form.
+    /// `auto` may open a GPU for the presets with a GPU form (`appearance` and `tong2002`, on
+    /// a plane or a mesh) under k-coherence, and keeps the CPU for a full search and for the
+    /// others.
     #[test]
     fn auto_keeps_the_cpu_for_full_searches_and_presets_without_a_gpu_form() {
-        let plane = grid_levels(32, 32, 2, 5, 3);
         for preset in Preset::all() {
             let has_form = ["appearance", "tong2002"].contains(&preset.name.as_str());
-            let k = why_auto_keeps_the_cpu(&plane, &preset, Search::KCoherence { k: 11 });
-            let full = why_auto_keeps_the_cpu(&plane, &preset, Search::Full);
+            let k = why_auto_keeps_the_cpu(&preset, Search::KCoherence { k: 11 });
+            let full = why_auto_keeps_the_cpu(&preset, Search::Full);
             match has_form {
                 true => assert_eq!((k, full), (None, Some(AUTO_FULL_SEARCH)), "{}", preset.name),
                 false => assert_eq!(k, Some("no pass has a GPU form"), "{}", preset.name),
             }
         }
-        let slots = vec![crate::synth::slot::Slot::DEFAULT; 25];
-        let shape = Neighbourhoods::Mesh { template: 5, slots, shift_start: vec![0, 0], shifts: vec![] };
-        let mesh = [TargetLevel::new(1, shape)];
-        let k = Search::KCoherence { k: 11 };
-        assert_eq!(why_auto_keeps_the_cpu(&mesh, &Preset::appearance(), k), None);
-        assert_eq!(
-            why_auto_keeps_the_cpu(&mesh, &Preset::appearance(), Search::Full),
-            Some(AUTO_FULL_SEARCH)
-        );
-        assert_eq!(why_auto_keeps_the_cpu(&mesh, &Preset::tong2002(), k), Some("no pass has a GPU form"));
     }
 }

@@ -149,7 +149,7 @@ pub fn synthesize(
     let r = params.neighborhood / 2;
     let mut reports = Vec::new();
     let mut runner =
-        device::Runner::open(params.device, device::why_auto_keeps_the_cpu(targets, preset, params.search))?;
+        device::Runner::open(params.device, device::why_auto_keeps_the_cpu(preset, params.search))?;
     let mut state: Option<State> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;

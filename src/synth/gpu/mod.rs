@@ -19,9 +19,9 @@
 //! grid level) the `appearance` and `tong2002` presets on every level, and recipes built
 //! like them — every own pixel compared ([`Mask::Full`]), with or without a parent template
 //! (narrow or wide), the Γ, appearance or colour metric, argmin or choosy selection,
-//! k-coherence or full search; on a mesh the same without Γ (`appearance`), each template
-//! pixel blending up to three vertices' vectors as `metric::known_parts` weighs them. Anything
-//! else (Γ on a mesh, sequential orders, round or isotropic neighbourhoods, masked
+//! k-coherence or full search; on a mesh the same, each template pixel blending up to three
+//! vertices' vectors (or, under Γ, textons) as `metric::known_parts` weighs them. Anything
+//! else (sequential orders, round or isotropic neighbourhoods, masked
 //! templates, the use penalty, kd-trees) has no GPU form and runs on the CPU (each level's
 //! report says which, and why).
 
@@ -178,7 +178,10 @@ struct Params {
     entries: u32,
     stride: u32,
     split: u32,
-    _pad: [u32; 2],
+    query_words: u32,
+    fallback: u32,
+    p_fallback: u32,
+    _pad: [u32; 3],
 }
 
 /// A grid's shape: columns, rows, template side, whether it wraps.
@@ -273,9 +276,6 @@ fn form<'a>(job: &PassJob<'a>) -> std::result::Result<Form<'a>, String> {
     };
     if template.mask() != Mask::Full {
         return Err(format!("a template masked {:?}", template.mask()));
-    }
-    if shape.is_mesh() && metric == SquareMetric::Gamma {
-        return Err("the Γ metric on a mesh level".into());
     }
     let choosy = match job.pass.select {
         Select::Argmin => None,
@@ -385,10 +385,7 @@ impl Table {
         };
         let entries = (form.most_shifts * per_shift).max(MIN_ENTRIES);
         let pixels = form.pixels();
-        let query = match form.shape.is_mesh() {
-            true => pixels * map_of(job.sample, form.metric).map_or(0, |m| m.dims),
-            false => 0,
-        };
+        let query = pixels * query_words(job.sample, form) as usize;
         let costs = if form.split() { entries * pixels } else { 0 };
         Table { bits: (entries * 3 / 2).next_power_of_two().trailing_zeros(), entries, query, costs }
     }
@@ -420,6 +417,17 @@ struct LevelBuffers {
     /// The tables' word offsets (and the parameters that do not change between passes).
     base: Params,
     vertices: usize,
+}
+
+/// Words of scratch per template pixel of a mesh, where `prepare` leaves what each candidate
+/// compares with: the blended vector, or under Γ the pixel's three textons and s·s (the
+/// `Term` of [`super::metric::GammaMetric`]; its weights stay in the tables). None on a grid.
+fn query_words(sample: &SampleLevel, form: &Form) -> u32 {
+    match (form.shape.is_mesh(), form.metric) {
+        (false, _) => 0,
+        (true, SquareMetric::Gamma) => 4,
+        (true, metric) => map_of(sample, metric).map_or(0, |m| m.dims as u32),
+    }
 }
 
 /// The sample level's map for `metric` (none for Γ).
@@ -726,6 +734,7 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelP
         base.off_parents = push(&mut tables, target.parents.iter().map(|p| p.vertex));
         (base.p_sw, base.p_sh) = (coarse_sample.width as u32, coarse_sample.height as u32);
         base.p_textons = coarse_sample.textons as u32;
+        base.p_fallback = coarse_sample.default_texton().into();
         base.parent = 1;
         coarse = pack_state(coarse_state);
     }
@@ -739,6 +748,7 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelP
         ((target.template / 2) as u32, sample.k as u32, sample.textons as u32);
     base.metric = u32::from(form.metric != SquareMetric::Gamma);
     base.dims = map_of(sample, form.metric).map_or(0, |m| m.dims as u32);
+    (base.query_words, base.fallback) = (query_words(sample, form), sample.default_texton().into());
     let (batch, batches) = batching(job, form, base.dims as usize);
     let widest = form.colouring.classes.iter().map(Vec::len).max().unwrap_or(0).min(chunk);
     LevelPlan {
