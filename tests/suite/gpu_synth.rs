@@ -1,6 +1,6 @@
 //! Synthesis passes on the GPU (`synth --device gpu`, `src/synth/gpu`): the same coordinates
 //! as the CPU for a seed, byte for byte, on every level of the presets whose passes have a
-//! GPU form (`appearance`, `tong2002` on planes, `appearance` on meshes), and on a recipe
+//! GPU form (`appearance` and `tong2002`, on planes and meshes), and on a recipe
 //! that reaches the other branches of the shader (colour metric, wide parent template,
 //! argmin, full search).
 //!
