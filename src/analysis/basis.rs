@@ -260,11 +260,11 @@ impl LowRankStack {
         LowRankStack { coords, outside: self.outside * share, ..self }
     }
 
-    /// Applies a linear map of images (e.g. a pyramid's downsampling) to the stack: to
-    /// the offset and to every row, in parallel; the coordinates stay. The energy outside
+    /// The stack under a linear map of images (e.g. a pyramid's downsampling): the map
+    /// applied to the offset and to every row, in parallel; the coordinates stay. The energy outside
     /// the rows' span cannot be mapped without the images: it is scaled by the ratio the
     /// centred energy inside the span changed by (an estimate; exact stacks have none).
-    pub fn map_rows(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
+    pub fn map_rows(&self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
         let before = if self.outside > 0.0 { self.inside_energy() } else { 0.0 };
         let mut mapped = self.map_rows_only(f);
         if mapped.outside > 0.0 {
@@ -283,7 +283,7 @@ impl LowRankStack {
         (centred.dot(&g) * &centred).sum()
     }
 
-    fn map_rows_only(self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
+    fn map_rows_only(&self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
         use rayon::prelude::*;
         let mapped: Vec<Vec<f32>> = (0..self.rows.nrows())
             .into_par_iter()
@@ -298,7 +298,7 @@ impl LowRankStack {
         for (mut dst, src) in rows.rows_mut().into_iter().zip(&mapped) {
             dst.assign(&ndarray::ArrayView1::from(src.as_slice()));
         }
-        LowRankStack { offset, rows, ..self }
+        LowRankStack { offset, rows, coords: self.coords.clone(), outside: self.outside }
     }
 
     /// Image `a` (D values).

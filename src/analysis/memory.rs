@@ -68,6 +68,34 @@ fn check_against(
     }
 }
 
+/// Whether `bytes` more may be allocated now within the budget: 80% of the memory available
+/// at this moment, or the `BTFSYNTH_MEMORY` budget less what this process holds (its
+/// resident set); always where the check is off or the budget unknown. For choices that
+/// change how fast, never what, an analysis computes.
+pub fn fits_now(bytes: u64) -> bool {
+    match budget() {
+        Ok(Some((limit, _))) if std::env::var_os(MEMORY_ENV).is_some() => {
+            bytes.saturating_add(resident().unwrap_or(0)) <= limit
+        }
+        Ok(Some((limit, _))) => bytes <= limit,
+        _ => true,
+    }
+}
+
+/// This process' resident set in bytes (Linux), if known.
+fn resident() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = text.lines().find(|l| l.starts_with("VmRSS:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+}
+
+/// What the texton stages of levels of `sizes` allocate together beyond the images they
+/// read, with a basis of at most `rank` components: the memory that running them side by
+/// side needs.
+pub fn levels_side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> u64 {
+    sizes.iter().map(|&(w, h)| level_stage((w * h) as u64, rank as u64, params, 0, 0)).sum()
+}
+
 /// Values of one level's texton stage: features, the responses waiting to be copied into
 /// them, the basis' components and the appearance vectors' work arrays.
 fn level_stage(texels: u64, rank: u64, params: &AnalysisParams, held: u64, images: u64) -> u64 {

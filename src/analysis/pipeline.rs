@@ -5,11 +5,12 @@ use super::convolve::{BankConvolver, Padding};
 use super::filters::FilterBank;
 use super::gamma::distance_table;
 use super::knn::{KnnParams, Level, PyramidSearch};
+use super::memory;
 use super::pyramid::{downsample, level_sizes};
 use super::select::{representatives, representatives_from_basis, selection_basis_options};
 use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
 use crate::btf::Btf;
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 use crate::{Error, Param, Remedy, Result};
 use ndarray::Array2;
 use std::time::{Duration, Instant};
@@ -69,7 +70,8 @@ pub struct AnalysisLevel {
     pub knn_two_level: Option<Vec<u32>>,
 }
 
-/// Wall time per stage, summed over levels.
+/// Wall time per stage, summed over levels (which run side by side, so the stages may add
+/// up to more than `total`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Timings {
     /// Choosing the representative images.
@@ -171,26 +173,17 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
     )?;
     timings.selection = started.elapsed();
 
-    let mut images = stack_rows(btf, &selected);
-    let mut levels = Vec::with_capacity(params.levels);
     let sizes = level_sizes(width, height, params.levels);
-    for (l, &(w, h)) in sizes.iter().enumerate() {
-        if l > 0 {
-            images = downsample_rows(&images, sizes[l - 1], params.tileable);
-        }
-        let options = TextonOptions {
-            textons: (params.textons >> (2 * l)).max(1),
-            basis_rank: params.basis_rank,
-            appearance_dims: params.appearance_dims,
-            padding,
-            seed: params.seed + l as u64,
-        };
-        let textons = level_textons(images.view(), (w, h), &convolver, &options, progress)?;
-        timings.filtering += textons.timings.filtering;
-        timings.kmeans += textons.timings.kmeans;
-        timings.gamma += textons.timings.gamma;
-        levels.push(textons);
+    let mut pyramid = vec![stack_rows(btf, &selected)];
+    for l in 1..sizes.len() {
+        pyramid.push(downsample_rows(&pyramid[l - 1], sizes[l - 1], params.tileable));
     }
+    let rank = params.basis_rank.min(selected.len());
+    let levels = textons_per_level(side_by_side(&sizes, rank, params), progress, |l, progress| {
+        level_textons(pyramid[l].view(), sizes[l], &convolver, &texton_options(params, padding, l), progress)
+    })?;
+    drop(pyramid);
+    add_level_timings(&mut timings, &levels);
 
     let knn_started = Instant::now();
     let analysed = knn_lists(levels, params, progress);
@@ -239,39 +232,93 @@ pub fn analyze_low_rank(
     };
     timings.selection = started.elapsed();
 
-    let mut images = stack.select(&selected);
-    let mut levels = Vec::with_capacity(params.levels);
     let sizes = level_sizes(width, height, params.levels);
-    for (l, &(w, h)) in sizes.iter().enumerate() {
-        let level_started = Instant::now();
-        if l > 0 {
-            let (pw, ph) = sizes[l - 1];
-            images = images.map_rows(|row| downsample(row, pw, ph, 3, params.tileable).0);
-        }
-        let options = TextonOptions {
-            textons: (params.textons >> (2 * l)).max(1),
-            basis_rank: params.basis_rank,
-            appearance_dims: params.appearance_dims,
-            padding,
-            seed: params.seed + l as u64,
-        };
-        let basis = principal_images_low_rank(&images, &basis_options(&options))?;
-        let basis_time = level_started.elapsed();
-        let mut textons = level_textons_from_basis(&basis, (w, h), &convolver, &options, progress)?;
-        drop(basis);
-        textons.timings.filtering += basis_time;
-        timings.filtering += textons.timings.filtering;
-        timings.kmeans += textons.timings.kmeans;
-        timings.gamma += textons.timings.gamma;
-        levels.push(textons);
+    let mut pyramid = vec![stack.select(&selected)];
+    for l in 1..sizes.len() {
+        let (pw, ph) = sizes[l - 1];
+        pyramid.push(pyramid[l - 1].map_rows(|row| downsample(row, pw, ph, 3, params.tileable).0));
     }
-    drop(images);
+    let rank = params.basis_rank.min(selected.len()).min(pyramid[0].rows.nrows().max(1));
+    let levels = textons_per_level(side_by_side(&sizes, rank, params), progress, |l, progress| {
+        let started = Instant::now();
+        let options = texton_options(params, padding, l);
+        let basis = principal_images_low_rank(&pyramid[l], &basis_options(&options))?;
+        let basis_time = started.elapsed();
+        let mut textons = level_textons_from_basis(&basis, sizes[l], &convolver, &options, progress)?;
+        textons.timings.filtering += basis_time;
+        Ok(textons)
+    })?;
+    drop(pyramid);
+    add_level_timings(&mut timings, &levels);
 
     let knn_started = Instant::now();
     let analysed = knn_lists(levels, params, progress);
     timings.knn = knn_started.elapsed();
     timings.total = started.elapsed();
     Ok(Analysis { params: params.clone(), selected, levels: analysed, timings })
+}
+
+/// Level `l`'s texton options under `params`: a quarter of the finer level's textons, and a
+/// seed of its own.
+fn texton_options(params: &AnalysisParams, padding: Padding, l: usize) -> TextonOptions {
+    TextonOptions {
+        textons: (params.textons >> (2 * l)).max(1),
+        basis_rank: params.basis_rank,
+        appearance_dims: params.appearance_dims,
+        padding,
+        seed: params.seed + l as u64,
+    }
+}
+
+/// How the levels of `sizes` run: side by side where the memory they need together fits
+/// the budget as it stands (else one after the other, within the estimate `analyze` checked
+/// before it started).
+fn side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> Levels {
+    match memory::fits_now(memory::levels_side_by_side(sizes, rank, params)) {
+        true => Levels::SideBySide(sizes.len()),
+        false => Levels::InTurn(sizes.len()),
+    }
+}
+
+/// How many levels there are and whether they run side by side.
+#[derive(Clone, Copy, Debug)]
+enum Levels {
+    SideBySide(usize),
+    InTurn(usize),
+}
+
+/// The textons of every level by `level(l, progress)`, finest first. Each level is made
+/// from its own images alone, so the coarser levels may run beside the finest (which
+/// reports to `progress`; they, a third of its work between them, report to nobody): the
+/// serial steps of one level (its eigendecompositions, k-means++ seeding, Γ's embedding)
+/// left a core idle for about a fifth of a 64² × 6,561-image BTF's analysis. Each level's
+/// result is the same to the bit whatever runs beside it.
+fn textons_per_level(
+    levels: Levels,
+    progress: &dyn Progress,
+    level: impl Fn(usize, &dyn Progress) -> Result<LevelTextons> + Sync,
+) -> Result<Vec<LevelTextons>> {
+    use rayon::prelude::*;
+    match levels {
+        Levels::InTurn(count) => (0..count).map(|l| level(l, progress)).collect(),
+        Levels::SideBySide(count) => {
+            let (finest, coarser) = rayon::join(
+                || level(0, progress),
+                || (1..count).into_par_iter().map(|l| level(l, &Silent)).collect::<Result<Vec<_>>>(),
+            );
+            Ok(std::iter::once(finest?).chain(coarser?).collect())
+        }
+    }
+}
+
+/// Adds each level's stage times to `timings` (wall times of levels that ran side by side,
+/// so their sum may exceed the whole analysis').
+fn add_level_timings(timings: &mut Timings, levels: &[LevelTextons]) {
+    for textons in levels {
+        timings.filtering += textons.timings.filtering;
+        timings.kmeans += textons.timings.kmeans;
+        timings.gamma += textons.timings.gamma;
+    }
 }
 
 /// The chosen images as rows of interleaved linear RGB.
@@ -349,4 +396,40 @@ fn knn_lists(
         .zip(lists)
         .map(|(textons, (knn, knn_two_level))| AnalysisLevel { textons, knn, knn_two_level })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The coarser levels run beside the finest give every level the bits it gets when the
+    /// levels run in turn.
+    #[test]
+    fn levels_side_by_side_are_the_levels_in_turn() {
+        let params = AnalysisParams { textons: 16, levels: 3, ..AnalysisParams::default() };
+        let sizes = level_sizes(16, 16, 3);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut pyramid = vec![Array2::from_shape_fn((12, 16 * 16 * 3), |_| rng.random::<f32>())];
+        for l in 1..sizes.len() {
+            pyramid.push(downsample_rows(&pyramid[l - 1], sizes[l - 1], true));
+        }
+        let convolver = BankConvolver::new(params.filters.clone());
+        let run = |levels| {
+            textons_per_level(levels, &Silent, |l, progress| {
+                let options = texton_options(&params, Padding::Wrap, l);
+                level_textons(pyramid[l].view(), sizes[l], &convolver, &options, progress)
+            })
+            .unwrap()
+        };
+        let (beside, in_turn) = (run(Levels::SideBySide(3)), run(Levels::InTurn(3)));
+        assert_eq!((beside.len(), in_turn.len()), (3, 3));
+        let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for (l, (a, b)) in beside.iter().zip(&in_turn).enumerate() {
+            assert_eq!(a.map.labels, b.map.labels, "level {l}");
+            assert_eq!(bits(&a.gamma), bits(&b.gamma), "level {l}");
+            assert_eq!(bits(&a.appearance), bits(&b.appearance), "level {l}");
+            assert_eq!(a.map.labels.len(), sizes[l].0 * sizes[l].1);
+        }
+    }
 }
