@@ -261,9 +261,10 @@ impl LowRankStack {
     }
 
     /// The stack under a linear map of images (e.g. a pyramid's downsampling): the map
-    /// applied to the offset and to every row, in parallel; the coordinates stay. The energy outside
-    /// the rows' span cannot be mapped without the images: it is scaled by the ratio the
-    /// centred energy inside the span changed by (an estimate; exact stacks have none).
+    /// applied to the offset and to every row, in parallel; the coordinates stay. The
+    /// energy outside the rows' span cannot be mapped without the images: it is scaled by
+    /// the ratio the centred energy inside the span changed by (an estimate; exact stacks
+    /// have none).
     pub fn map_rows(&self, f: impl Fn(&[f32]) -> Vec<f32> + Sync) -> LowRankStack {
         let before = if self.outside > 0.0 { self.inside_energy() } else { 0.0 };
         let mut mapped = self.map_rows_only(f);

@@ -70,8 +70,8 @@ pub struct AnalysisLevel {
     pub knn_two_level: Option<Vec<u32>>,
 }
 
-/// Wall time per stage, summed over levels (which run side by side, so the stages may add
-/// up to more than `total`).
+/// Wall time per stage, summed over levels (which may run side by side, so the stages may
+/// add up to more than `total`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Timings {
     /// Choosing the representative images.

@@ -333,7 +333,7 @@ fn fits_the_shader(job: &PassJob, form: &Form) -> std::result::Result<(), String
     if table.entries > MAX_ENTRIES {
         return Err("more candidates per vertex than the shader's table holds".into());
     }
-    // The gather's loops: each shift and its candidates, then the blended vectors.
+    // The gather's loops: each shift and its candidates, then the templates' pixels (prepared).
     if table.entries + table.query > LOOP_BUDGET {
         return Err("templates too large for one invocation's loops".into());
     }
@@ -364,7 +364,8 @@ struct LevelKey {
 
 /// An invocation's candidate table (open addressing, 2^`bits` slots of two words) and list
 /// (`entries` words), sized for the most forward shifts and candidates a vertex may have;
-/// on a mesh, the `query` words of its templates' blended vectors.
+/// on a mesh, the `query` words of what the shader's `prepare` leaves of its templates
+/// (blended vectors, or Γ terms).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Table {
     bits: u32,
@@ -391,7 +392,7 @@ impl Table {
     }
 
     /// Scratch words per invocation (the shader's `P.stride`): table, list, count, best,
-    /// blended vectors and pixel costs.
+    /// prepared template pixels and pixel costs.
     fn stride(&self) -> usize {
         2 * (1 << self.bits) + self.entries + 5 + self.query + self.costs
     }
