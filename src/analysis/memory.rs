@@ -8,7 +8,7 @@
 //! feature matrix k-means clusters, appearance vectors) and leave out what is small beside
 //! them; measured peaks are within about 20% of them (see `benches/big_btf.sh`).
 
-use super::pipeline::AnalysisParams;
+use super::params::AnalysisParams;
 use super::pyramid::level_sizes;
 use crate::{Error, Remedy, Result};
 use std::path::Path;

@@ -25,6 +25,7 @@ pub mod kmeans;
 pub mod knn;
 pub mod memory;
 pub mod npy;
+pub mod params;
 pub mod pipeline;
 pub mod products;
 pub mod pyramid;
