@@ -8,6 +8,9 @@
 //
 // - products that feed a sum go through `opaque`, so no compiler fuses them into an FMA
 //   (Rust never contracts; a GPU compiler may);
+// - a sum of three written-out terms passes its first partial sum through `opaque`, so no
+//   compiler reassociates it (llvmpipe's GL did: a mesh pixel's blend of three vertices
+//   came out up to 3 ulps off, where Vulkan kept the order);
 // - the one division (the early-exit bound, best / factor) is done exactly in integers,
 //   rounded to nearest even, since WGSL's `/` may be off by 2.5 ulp;
 // - everything else is +, −, × and comparisons, which WGSL rounds exactly.
@@ -358,7 +361,7 @@ fn prepare(win: Window, lv: Level) {
             continue;
         }
         for (var j = 0u; j < P.dims; j = j + 1u) {
-            let q = ((0.0 + part(slot, 0u, j, lv, win.coarse)) + part(slot, 1u, j, lv, win.coarse))
+            let q = opaque(opaque(0.0 + part(slot, 0u, j, lv, win.coarse)) + part(slot, 1u, j, lv, win.coarse))
                 + part(slot, 2u, j, lv, win.coarse);
             scratch[win.query + i * P.dims + j] = bitcast<u32>(q);
         }
@@ -407,7 +410,7 @@ fn prepare_terms(win: Window, lv: Level) {
 // `ss` plus row `a` of s·s's terms, wₐ w_b Γ(tₐ, t_b) for b = 0, 1, 2 (unrolled, as
 // llvmpipe counts loop iterations).
 fn ss_row(ss: f32, lv: Level, w: vec3<f32>, t: vec3<u32>, a: u32) -> f32 {
-    return ((ss + opaque((w[a] * w[0]) * gamma_of(lv, t[a], t[0])))
+    return opaque(opaque(ss + opaque((w[a] * w[0]) * gamma_of(lv, t[a], t[0])))
         + opaque((w[a] * w[1]) * gamma_of(lv, t[a], t[1])))
         + opaque((w[a] * w[2]) * gamma_of(lv, t[a], t[2]));
 }
@@ -418,7 +421,7 @@ fn term_cost(win: Window, lv: Level, i: u32, x: i32, y: i32) -> f32 {
     let slot = win.slots + SLOT_WORDS * i;
     let q = win.query + 4u * i;
     let t = label_at(lv.labels, x, y, lv.size.x, lv.size.y);
-    let st = ((0.0 + opaque(f(tables[slot + 3u]) * gamma_of(lv, scratch[q], t)))
+    let st = opaque(opaque(0.0 + opaque(f(tables[slot + 3u]) * gamma_of(lv, scratch[q], t)))
         + opaque(f(tables[slot + 4u]) * gamma_of(lv, scratch[q + 1u], t)))
         + opaque(f(tables[slot + 5u]) * gamma_of(lv, scratch[q + 2u], t));
     return (f(scratch[q + 3u]) - 2.0 * st) + gamma_of(lv, t, t);
