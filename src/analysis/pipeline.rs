@@ -84,7 +84,8 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
         pyramid.push(downsample_rows(&pyramid[l - 1], sizes[l - 1], params.tileable));
     }
     let rank = params.basis_rank.min(selected.len());
-    let levels = textons_per_level(side_by_side(&sizes, rank, params), progress, |l, progress| {
+    let beside = side_by_side(&sizes, rank, params);
+    let levels = textons_per_level(sizes.len(), beside, progress, |l, progress| {
         level_textons(pyramid[l].view(), sizes[l], &convolver, &texton_options(params, padding, l), progress)
     })?;
     drop(pyramid);
@@ -144,7 +145,8 @@ pub fn analyze_low_rank(
         pyramid.push(pyramid[l - 1].map_rows(|row| downsample(row, pw, ph, 3, params.tileable).0));
     }
     let rank = params.basis_rank.min(selected.len()).min(pyramid[0].rows.nrows().max(1));
-    let levels = textons_per_level(side_by_side(&sizes, rank, params), progress, |l, progress| {
+    let beside = side_by_side(&sizes, rank, params);
+    let levels = textons_per_level(sizes.len(), beside, progress, |l, progress| {
         let started = Instant::now();
         let options = texton_options(params, padding, l);
         let basis = principal_images_low_rank(&pyramid[l], &basis_options(&options))?;
@@ -175,45 +177,34 @@ fn texton_options(params: &AnalysisParams, padding: Padding, l: usize) -> Texton
     }
 }
 
-/// How the levels of `sizes` run: side by side where the memory they need together fits
+/// Whether the levels of `sizes` run side by side: where the memory they need together fits
 /// the budget as it stands (else one after the other, within the estimate `analyze` checked
 /// before it started).
-fn side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> Levels {
-    match memory::fits_now(memory::levels_side_by_side(sizes, rank, params)) {
-        true => Levels::SideBySide(sizes.len()),
-        false => Levels::InTurn(sizes.len()),
-    }
+fn side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> bool {
+    memory::fits_now(memory::levels_side_by_side(sizes, rank, params))
 }
 
-/// How many levels there are and whether they run side by side.
-#[derive(Clone, Copy, Debug)]
-enum Levels {
-    SideBySide(usize),
-    InTurn(usize),
-}
-
-/// The textons of every level by `level(l, progress)`, finest first. Each level is made
-/// from its own images alone, so the coarser levels may run beside the finest (which
+/// The textons of `count` levels by `level(l, progress)`, finest first. Each level is made
+/// from its own images alone, so the coarser levels may run `beside` the finest (which
 /// reports to `progress`; they, a third of its work between them, report to nobody): the
 /// serial steps of one level (its eigendecompositions, k-means++ seeding, Γ's embedding)
 /// left a core idle for about a fifth of a 64² × 6,561-image BTF's analysis. Each level's
 /// result is the same to the bit whatever runs beside it.
 fn textons_per_level(
-    levels: Levels,
+    count: usize,
+    beside: bool,
     progress: &dyn Progress,
     level: impl Fn(usize, &dyn Progress) -> Result<LevelTextons> + Sync,
 ) -> Result<Vec<LevelTextons>> {
     use rayon::prelude::*;
-    match levels {
-        Levels::InTurn(count) => (0..count).map(|l| level(l, progress)).collect(),
-        Levels::SideBySide(count) => {
-            let (finest, coarser) = rayon::join(
-                || level(0, progress),
-                || (1..count).into_par_iter().map(|l| level(l, &Silent)).collect::<Result<Vec<_>>>(),
-            );
-            Ok(std::iter::once(finest?).chain(coarser?).collect())
-        }
+    if !beside {
+        return (0..count).map(|l| level(l, progress)).collect();
     }
+    let (finest, coarser) = rayon::join(
+        || level(0, progress),
+        || (1..count).into_par_iter().map(|l| level(l, &Silent)).collect::<Result<Vec<_>>>(),
+    );
+    Ok(std::iter::once(finest?).chain(coarser?).collect())
 }
 
 /// Adds each level's stage times to `timings` (wall times of levels that ran side by side,
@@ -320,14 +311,14 @@ mod tests {
             pyramid.push(downsample_rows(&pyramid[l - 1], sizes[l - 1], true));
         }
         let convolver = BankConvolver::new(params.filters.clone());
-        let run = |levels| {
-            textons_per_level(levels, &Silent, |l, progress| {
+        let run = |beside| {
+            textons_per_level(3, beside, &Silent, |l, progress| {
                 let options = texton_options(&params, Padding::Wrap, l);
                 level_textons(pyramid[l].view(), sizes[l], &convolver, &options, progress)
             })
             .unwrap()
         };
-        let (beside, in_turn) = (run(Levels::SideBySide(3)), run(Levels::InTurn(3)));
+        let (beside, in_turn) = (run(true), run(false));
         assert_eq!((beside.len(), in_turn.len()), (3, 3));
         let bits = |a: &Array2<f32>| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         for (l, (a, b)) in beside.iter().zip(&in_turn).enumerate() {
