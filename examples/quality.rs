@@ -1,14 +1,16 @@
 //! The synthesis-quality benchmark: btfsynth (defaults) beside two peers, Embark's
 //! `texture-synthesis` and Resynthesizer (the engine of GIMP's plug-in), all on defaults, on
-//! every photograph of `../shared/data/textures` (a 128² crop → 512²) and on generated BTFs
-//! (`gen pebbles|weave|bricks`, 64² → 256²), with wall time, CPU time, peak memory and every
-//! quality measure of `btfsynth eval` (repetition included), one table and one montage per
-//! sample (sample | Embark | Resynthesizer | btfsynth). Not a test: figures are reported,
-//! never asserted.
+//! every photograph of `../shared/data/textures` twice — at its own size (cropped to 256²
+//! where larger) → 4× its side (at most 512), and as a 128² crop → 512² — and on generated
+//! BTFs (`gen pebbles|weave|bricks`, 64² → 256²), with wall time, CPU time, peak memory and
+//! every quality measure of `btfsynth eval` (repetition included), one table, a summary of
+//! repetition per sample-size band (≤ 64, 65–128, > 128 texels a side) against each peer,
+//! and one montage per sample (sample | Embark | Resynthesizer | btfsynth). Not a test:
+//! figures are reported, never asserted.
 //!
 //! ```text
 //! benches/quality.sh            # installs the peers into target/peer, then runs this
-//! cargo run --release --example quality -- --peer PATH [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME]
+//! cargo run --release --example quality -- --peer PATH [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME] [--set own|crops|gen|all]
 //! ```
 //!
 //! `--resynth` is a command (its words split on spaces) that takes `SAMPLE.png OUT.png SIDE`
@@ -49,6 +51,8 @@ impl std::ops::Add for Cost {
 /// What one tool produced on one sample.
 struct Row {
     sample: String,
+    /// The sample's width and height in texels.
+    size: (usize, usize),
     tool: String,
     cost: Cost,
     picture: PictureQuality,
@@ -61,6 +65,7 @@ struct Options {
     out: PathBuf,
     seeds: u64,
     only: Option<String>,
+    set: String,
 }
 
 fn main() {
@@ -81,6 +86,7 @@ fn options() -> Options {
         out: "bench-out/quality".into(),
         seeds: 1,
         only: None,
+        set: "all".into(),
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -91,6 +97,7 @@ fn options() -> Options {
             "--out" => o.out = value().into(),
             "--seeds" => o.seeds = value().parse().unwrap_or_else(|_| usage("--seeds takes a number")),
             "--only" => o.only = Some(value()),
+            "--set" => o.set = value(),
             _ => usage(&format!("unknown argument {a}")),
         }
     }
@@ -98,7 +105,7 @@ fn options() -> Options {
 }
 
 fn usage(message: &str) -> ! {
-    eprintln!("error: {message}\nusage: quality [--peer PATH] [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME]");
+    eprintln!("error: {message}\nusage: quality [--peer PATH] [--resynth COMMAND] [--out DIR] [--seeds N] [--only NAME] [--set own|crops|gen|all]");
     std::process::exit(2);
 }
 
@@ -119,13 +126,14 @@ fn run(o: Options) -> Result<()> {
         let dir = o.out.join(&name);
         rows.extend(sample_rows(&o, &btfsynth, &name, &stack, out_side, &dir)?);
     }
-    let table = table(&rows);
+    let table = table(&rows) + "\n" + &size_bands(&rows);
     std::fs::write(o.out.join("quality.md"), &table).map_err(|e| e.to_string())?;
     println!("{table}");
     Ok(())
 }
 
-/// (name, stack path, output side) of every sample: photograph crops and generated BTFs.
+/// (name, stack path, output side) of every sample: each photograph at its own size (at
+/// most 256² of it) and as a 128² crop, and the generated BTFs, as `--set` asks.
 fn samples(o: &Options, btfsynth: &Path) -> Result<Vec<(String, PathBuf, usize)>> {
     let textures = btfsynth::testdata::shared_root().join("textures");
     let mut out = Vec::new();
@@ -134,13 +142,28 @@ fn samples(o: &Options, btfsynth: &Path) -> Result<Vec<(String, PathBuf, usize)>
         .filter_map(|e| e.ok().map(|e| e.path()))
         .collect();
     files.sort();
+    let wanted = |set: &str| o.set == "all" || o.set == set;
     for file in files {
         let name = file.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-        let crop = o.out.join(format!("{name}.png"));
         let image = image::open(&file).map_err(|e| format!("{}: {e}", file.display()))?.to_rgb8();
-        let (w, h) = (image.width().min(128), image.height().min(128));
-        image::imageops::crop_imm(&image, 0, 0, w, h).to_image().save(&crop).map_err(|e| e.to_string())?;
-        out.push((name, crop, 512));
+        let mut crop = |tag: &str, side: u32| -> Result<(String, PathBuf, usize)> {
+            let (w, h) = (image.width().min(side), image.height().min(side));
+            let path = o.out.join(format!("{name}-{tag}.png"));
+            image::imageops::crop_imm(&image, 0, 0, w, h)
+                .to_image()
+                .save(&path)
+                .map_err(|e| e.to_string())?;
+            Ok((format!("{name}-{tag}"), path, (4 * w.min(h) as usize).min(512)))
+        };
+        if wanted("own") {
+            out.push(crop("own", 256)?);
+        }
+        if wanted("crops") {
+            out.push(crop("128", 128)?);
+        }
+    }
+    if !wanted("gen") {
+        return Ok(out);
     }
     for material in ["pebbles", "weave", "bricks"] {
         let stack = o.out.join(format!("gen-{material}"));
@@ -176,6 +199,7 @@ fn sample_rows(
     let images = SampleImages::open(&analysis).map_err(|e| e.to_string())?;
     let head_on = images.default_probes()[0].image;
     let sample = images.picture(head_on);
+    let size = (sample.width, sample.height);
     let tileable = false;
     let mut rows = Vec::new();
     for seed in 0..o.seeds {
@@ -192,17 +216,21 @@ fn sample_rows(
         let e = evaluate_plane(&analysis, &plane).map_err(|e| e.to_string())?;
         rows.push(Row {
             sample: name.into(),
+            size,
             tool: format!("btfsynth (seed {seed})"),
             cost: analyse + synth,
             picture: e.probes[0].quality,
             coords: e.coords,
         });
     }
-    let peer = peer_row(o, name, &sample, side, dir, tileable)?;
+    let mut peer = peer_row(o, name, &sample, side, dir, tileable)?;
+    peer.size = size;
     rows.push(peer);
     let mut pictures = vec![dir.join("embark.png")];
     if let Some(command) = &o.resynth {
-        rows.push(resynth_row(command, name, &sample, side, dir, tileable)?);
+        let mut resynth = resynth_row(command, name, &sample, side, dir, tileable)?;
+        resynth.size = size;
+        rows.push(resynth);
         pictures.push(dir.join("resynthesizer.png"));
     }
     pictures.push(dir.join("btfsynth-0/result.png"));
@@ -228,6 +256,7 @@ fn resynth_row(
     ok.then_some(()).ok_or(format!("Resynthesizer on {name} failed"))?;
     Ok(Row {
         sample: name.into(),
+        size: (sample.width, sample.height),
         tool: "Resynthesizer".into(),
         cost,
         picture: picture_quality(&load(&out)?, sample, tileable),
@@ -285,6 +314,7 @@ fn peer_row(
     };
     Ok(Row {
         sample: name.into(),
+        size: (sample.width, sample.height),
         tool: "Embark texture-synthesis".into(),
         cost,
         picture: picture_quality(&result, sample, tileable),
@@ -383,7 +413,7 @@ fn montage(sample: &Picture, results: &[PathBuf], out: &Path) -> Result<()> {
 
 fn table(rows: &[Row]) -> String {
     let mut t = String::from(
-        "| sample | tool | wall s | CPU s | peak MB | patch energy | coarse | colour χ² | contrast | repetition | unused | use spread | collapse | smear | copy |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| sample | size | tool | wall s | CPU s | peak MB | patch energy | coarse | colour χ² | contrast | repetition | unused | use spread | collapse | smear | copy |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (p, c) = (&r.picture, r.coords);
@@ -391,8 +421,10 @@ fn table(rows: &[Row]) -> String {
             |f: fn(&CoordQuality) -> f64| c.as_ref().map_or("–".to_string(), |c| format!("{:.4}", f(c)));
         let _ = writeln!(
             t,
-            "| {} | {} | {:.1} | {:.1} | {:.0} | {:.5} | {:.5} | {:.4} | {:.3} | {:.3} | {:.3} | {:.2} | {} | {} | {} |",
+            "| {} | {}×{} | {} | {:.1} | {:.1} | {:.0} | {:.5} | {:.5} | {:.4} | {:.3} | {:.3} | {:.3} | {:.2} | {} | {} | {} |",
             r.sample,
+            r.size.0,
+            r.size.1,
             r.tool,
             r.cost.wall,
             r.cost.cpu,
@@ -407,6 +439,55 @@ fn table(rows: &[Row]) -> String {
             coord(|c| c.collapse),
             coord(|c| c.smear),
             coord(|c| c.copy)
+        );
+    }
+    t
+}
+
+/// Per band of sample sizes (the smaller side: ≤ 64, 65–128, > 128 texels): the mean
+/// repetition of btfsynth (every seed) and of each peer over the band's samples, the
+/// ratio to each peer, and on how many samples btfsynth's worst seed is at or below
+/// Resynthesizer's.
+fn size_bands(rows: &[Row]) -> String {
+    let mut t = String::from(
+        "| sample side | samples | btfsynth | Embark | Resynthesizer | ÷ Embark | ÷ Resynthesizer | worst seed ≤ Resynthesizer |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    let band_of = |r: &Row| match r.size.0.min(r.size.1) {
+        0..=64 => 0,
+        65..=128 => 1,
+        _ => 2,
+    };
+    for (band, label) in ["≤ 64", "65–128", "> 128"].iter().enumerate() {
+        let in_band: Vec<&Row> = rows.iter().filter(|r| band_of(r) == band).collect();
+        let mut samples: Vec<&str> = in_band.iter().map(|r| r.sample.as_str()).collect();
+        samples.dedup();
+        let repetition = |r: &&Row| r.picture.repetition.repetition;
+        let mean = |tool: &dyn Fn(&str) -> bool| {
+            let v: Vec<f64> = in_band.iter().filter(|r| tool(&r.tool)).map(repetition).collect();
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        };
+        let (ours, embark, resynth) = (
+            mean(&|t| t.starts_with("btfsynth")),
+            mean(&|t| t.starts_with("Embark")),
+            mean(&|t| t == "Resynthesizer"),
+        );
+        let at_or_below = samples
+            .iter()
+            .filter(|&&name| {
+                let of = |tool: &dyn Fn(&str) -> bool| {
+                    in_band.iter().filter(|r| r.sample == name && tool(&r.tool)).map(repetition)
+                };
+                let worst = of(&|t| t.starts_with("btfsynth")).fold(f64::NAN, f64::max);
+                of(&|t| t == "Resynthesizer").next().is_some_and(|peer| worst <= peer)
+            })
+            .count();
+        let _ = writeln!(
+            t,
+            "| {label} | {} | {ours:.4} | {embark:.4} | {resynth:.4} | {:.2} | {:.2} | {at_or_below} of {} |",
+            samples.len(),
+            ours / embark,
+            ours / resynth,
+            samples.len()
         );
     }
     t

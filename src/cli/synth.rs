@@ -86,7 +86,9 @@ pub struct SynthArgs {
     /// Candidates per kNN list (at most the analysis' k; default: the analysis' k).
     #[arg(long, value_parser = super::at_least(1))]
     k: Option<usize>,
-    /// Pyramid levels to use (at most the analysis' levels; default: all).
+    /// Pyramid levels to use (at most the analysis' levels; default: as many as keep the
+    /// coarsest level at least 4n + 2 texels a side for an n×n --neighborhood, 30 for 7×7,
+    /// so that a small sample is not copied whole on a lattice).
     #[arg(long, value_parser = super::at_least(1))]
     levels: Option<usize>,
     /// Side of the square neighbourhood template (odd, at least 3).

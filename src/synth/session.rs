@@ -93,7 +93,9 @@ impl SynthSessionBuilder {
         self
     }
 
-    /// Pyramid levels used, finest first, 1 to the analysis' levels. Default: all of them.
+    /// Pyramid levels used, finest first, 1 to the analysis' levels. Default: as many as
+    /// keep the coarsest level in use at least [`coarsest_side_for`] texels a side
+    /// ([`default_levels`]).
     pub fn levels(mut self, levels: usize) -> Self {
         self.levels = Some(levels);
         self
@@ -125,7 +127,7 @@ impl SynthSessionBuilder {
     /// a whole neighbourhood, and the preset can run the search.
     pub fn build(self, manifest: &Manifest) -> Result<SynthSession> {
         let available = manifest.levels.len();
-        let levels = self.levels.unwrap_or(available);
+        let levels = self.levels.unwrap_or_else(|| default_levels(manifest, self.neighbourhood));
         if !(1..=available).contains(&levels) {
             let message = format!("the analysis has {available} level(s)");
             return Err(Error::out_of_range(Param::Levels, levels, message));
@@ -150,6 +152,28 @@ impl SynthSessionBuilder {
         };
         Ok(SynthSession { params, choice: self.search, k, levels })
     }
+}
+
+/// The least side (texels) of the coarsest sample level the default synthesis starts on,
+/// for an `n`×`n` neighbourhood: a band of candidate texels (the side less the `n` − 1
+/// texels whose neighbourhood would leave the sample) that holds three of the smallest
+/// patches (radius (n + 1)/2, see [`super::Start::Patches`]) a side, 4n + 2 texels (30 for
+/// the default 7×7).
+///
+/// Why: the coarsest level's patches are copied up the whole pyramid. On a coarsest level
+/// whose band holds fewer, every patch is most of the band, so the output is a lattice of
+/// near-whole copies of the sample at the band's period (a 64² sample's third level is 16²:
+/// a band of 10 texels against patches of 8). Halving stops early instead: a 64² sample
+/// starts at 32², a 50² one on itself.
+pub fn coarsest_side_for(n: usize) -> usize {
+    4 * n + 2
+}
+
+/// The levels a synthesis uses by default: the most (up to the analysis') whose coarsest
+/// level is at least [`coarsest_side_for`] the neighbourhood `n` a side; at least one.
+pub fn default_levels(manifest: &Manifest, n: usize) -> usize {
+    let side = |l: usize| manifest.levels[l - 1].width.min(manifest.levels[l - 1].height);
+    (1..=manifest.levels.len()).rev().find(|&l| side(l) >= coarsest_side_for(n)).unwrap_or(1)
 }
 
 /// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there

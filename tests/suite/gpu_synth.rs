@@ -150,7 +150,11 @@ fn synth_device_gpu_writes_the_cpus_bytes_for_a_shared_photo() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let synth = |device: &str| {
         let (out, report) = (path(device), path(&format!("{device}.json")));
-        let args = ["-q", "synth", &analysis, "--plane", "128x112", "--seed", "4", "--device", device];
+        // All three levels, asked for (the default stops at 48²), so that each runs on the GPU.
+        let args = [
+            "-q", "synth", &analysis, "--plane", "128x112", "--seed", "4", "--levels", "3", "--device",
+            device,
+        ];
         let r = common::btfsynth(&[&args[..], &["-o", &out, "--report", &report]].concat());
         (r, out, report)
     };

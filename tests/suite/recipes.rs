@@ -224,8 +224,9 @@ fn bad_recipes_are_refused_with_one_line() {
     let r = btfsynth(&["synth", s(&old), "--plane", "16x16", "--recipe", s(&fine), "-o", s(&out)]);
     assert_usage_error(&r, "appearance vectors, which this analysis lacks");
 
-    // Three levels of the 48² crop leave a 12² coarsest level, which holds no candidate's
-    // whole round neighbourhood of 6 circles (15² texels): refused before any work.
+    // Three levels (asked for: the default stops at 48²) of the 48² crop leave a 12²
+    // coarsest level, which holds no candidate's whole round neighbourhood of 6 circles (15²
+    // texels): refused before any work.
     let small = dir.path().join("small");
     let texture = concat!(env!("CARGO_MANIFEST_DIR"), "/data/gravel-128.png");
     run_ok(&[
@@ -248,7 +249,9 @@ fn bad_recipes_are_refused_with_one_line() {
             }
         }
     });
-    let r = btfsynth(&["synth", s(&small), "--plane", "16x16", "--recipe", s(&six), "-o", s(&out)]);
+    let six_args =
+        ["synth", s(&small), "--plane", "16x16", "--levels", "3", "--recipe", s(&six), "-o", s(&out)];
+    let r = btfsynth(&six_args);
     assert_usage_error(&r, "the coarsest sample level in use is 12x12: use at most 4 circles");
     let mut names = entries(dir.path());
     names.retain(|n| !n.ends_with(".json"));
@@ -372,7 +375,10 @@ fn jittered_upsampling_runs_at_any_thread_count() {
     };
     let (one, half) = (jittered(1.0, "jitter-1"), jittered(0.5, "jitter-half"));
     let plane = |how: &[&str], threads: &str, out: &str| {
-        seeded_plane(&analysis, &[&["--threads", threads][..], how].concat(), &dir.path().join(out))
+        // Two levels, asked for: the default synthesizes this 48² crop on one, and jitter
+        // moves only the finer levels' coordinates.
+        let levels = ["--levels", "2", "--threads", threads];
+        seeded_plane(&analysis, &[&levels[..], how].concat(), &dir.path().join(out))
     };
     let (labels1, uv1, _) = plane(&["--recipe", s(&one)], "1", "j1");
     let (labels2, uv2, manifest) = plane(&["--recipe", s(&one)], "2", "j2");

@@ -83,7 +83,9 @@ fn synthesize_the_periodic_sample(
     let report = dir.join(format!("report-{tag}.json"));
     let r = btfsynth(
         &[
-            &["-q", "synth", analysis.to_str().unwrap(), "--plane", "64x48"][..],
+            // Both levels, asked for (the default would stop at the checker's finest level):
+            // the periodic sample is continued through the parent neighbourhoods too.
+            &["-q", "synth", analysis.to_str().unwrap(), "--plane", "64x48", "--levels", "2"][..],
             how,
             &["-o", plane.to_str().unwrap(), "--report", report.to_str().unwrap()],
         ]
