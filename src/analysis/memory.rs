@@ -325,7 +325,7 @@ mod tests {
     fn a_photographs_levels_are_estimated_with_its_one_image() {
         // One image has no principal components: its features are one block of 3 × 48
         // columns (151 MB at 512²), not two, which also made the estimate count a reduction
-        // that never runs (1.4 GiB). Measured (docs/speed.md): 216 MiB with the levels in
+        // that never runs (1.4 GiB). Measured (docs/big-btf.md): 216 MiB with the levels in
         // turn, 261 MiB side by side, the process' own pages included.
         let params = AnalysisParams::default();
         let stage = peak(&decoded_stages(1, (512, 512), &params)).cloned().unwrap();
