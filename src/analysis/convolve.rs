@@ -145,21 +145,36 @@ impl BankConvolver {
 
     fn filter_with(
         &self,
-        plan: &SizePlan,
+        plan: &Arc<SizePlan>,
         image: &[f32],
         width: usize,
         height: usize,
         padding: Padding,
     ) -> Result<Array3<f32>> {
-        let half = self.bank.max_half();
-        let mut padded = pad(image, width, height, half, padding, plan.fw, plan.fh);
-        let spectrum = plan.forward(&mut padded)?;
+        let sized = SizedBank { convolver: self, plan: plan.clone(), size: (width, height) };
+        let spectrum = sized.spectrum(image, padding)?;
         let mut out = vec![0f32; self.bank.len() * width * height];
-        out.par_chunks_mut(width * height).zip(plan.kernels.par_iter()).try_for_each(|(plane, kernel)| {
-            plan.respond(&spectrum, kernel, (half, half), (width, height), plane)
-        })?;
+        sized.respond_many(&spectrum, &sized.kernels(0..self.bank.len())?, &mut out)?;
         Array3::from_shape_vec((self.bank.len(), height, width), out)
             .map_err(|e| Error::internal(format!("shaping filter responses: {e}")))
+    }
+
+    /// The bank ready for images of `width × height`, to filter them a few filters at a
+    /// time ([`SizedBank`]). Its kernel spectra are the cached ones where this size was
+    /// filtered before; else they are made when asked for ([`SizedBank::kernels`]) and
+    /// freed by the caller, never cached: a pyramid level is filtered once, and at 512² the
+    /// bank's spectra take 60 MB.
+    pub fn sized(&self, width: usize, height: usize) -> Result<SizedBank<'_>> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!("cannot filter a {width}×{height} image: it has no pixels")));
+        }
+        let half = self.bank.max_half();
+        let key = (fft_len(width + 2 * half), fft_len(height + 2 * half));
+        let plan = match self.cached(key) {
+            Some(plan) => plan,
+            None => Arc::new(SizePlan::bare(key.0, key.1)),
+        };
+        Ok(SizedBank { convolver: self, plan, size: (width, height) })
     }
 
     /// The cached plan for images of this size, built on first use.
@@ -180,6 +195,96 @@ impl BankConvolver {
         let plans = self.plans.lock().unwrap_or_else(|p| p.into_inner());
         plans.get(&key).cloned()
     }
+}
+
+/// A bank's FFT plans for images of one size ([`BankConvolver::sized`]): an image is
+/// transformed once ([`SizedBank::spectrum`]), then answers any run of filters whose
+/// kernels' spectra the caller holds ([`SizedBank::kernels`], [`SizedBank::respond_many`]),
+/// so that a caller holds a few filters' responses at a time rather than the whole bank's
+/// (at 512², 50 MB per image), and the spectra of the kernels or of the images, whichever
+/// are fewer.
+pub struct SizedBank<'a> {
+    convolver: &'a BankConvolver,
+    plan: Arc<SizePlan>,
+    size: (usize, usize),
+}
+
+/// The spectrum of one padded image, as [`SizedBank::spectrum`] makes it.
+pub struct ImageSpectrum(Vec<Complex<f32>>);
+
+/// The spectra of a run of the bank's kernels, as [`SizedBank::kernels`] gives them.
+pub struct KernelSpectra<'a>(std::borrow::Cow<'a, [Vec<Complex<f32>>]>);
+
+impl KernelSpectra<'_> {
+    /// Number of kernels.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The kernels `range` of these, borrowed.
+    pub fn slice(&self, range: std::ops::Range<usize>) -> KernelSpectra<'_> {
+        KernelSpectra(std::borrow::Cow::Borrowed(&self.0[range]))
+    }
+}
+
+impl SizedBank<'_> {
+    /// The transform of `image` (`width × height` row-major, finite) padded by `padding`.
+    pub fn spectrum(&self, image: &[f32], padding: Padding) -> Result<ImageSpectrum> {
+        let ((width, height), plan) = (self.size, &self.plan);
+        check_image(image, width, height)?;
+        let half = self.convolver.bank.max_half();
+        let mut padded = pad(image, width, height, half, padding, plan.fw, plan.fh);
+        Ok(ImageSpectrum(plan.forward(&mut padded)?))
+    }
+
+    /// The spectra of the kernels of `filters` (bank indices): the cached ones, or made
+    /// now, in parallel, the same values.
+    pub fn kernels(&self, filters: std::ops::Range<usize>) -> Result<KernelSpectra<'_>> {
+        if let Some(cached) = self.plan.kernels.get(filters.clone()) {
+            return Ok(KernelSpectra(std::borrow::Cow::Borrowed(cached)));
+        }
+        let bank = self.convolver.bank.filters().get(filters.clone()).ok_or_else(|| {
+            Error::internal(format!("filters {filters:?} of a bank of {}", self.convolver.bank.len()))
+        })?;
+        let made = bank.par_iter().map(|filter| self.plan.kernel_spectrum(filter)).collect::<Result<_>>()?;
+        Ok(KernelSpectra(std::borrow::Cow::Owned(made)))
+    }
+
+    /// The responses of the image of `spectrum` to each kernel of `kernels`, one plane of
+    /// `width × height` after the other in `out` (as many planes as kernels); the same
+    /// values as [`BankConvolver::filter`]'s. The kernels run in parallel.
+    pub fn respond_many(
+        &self,
+        spectrum: &ImageSpectrum,
+        kernels: &KernelSpectra,
+        out: &mut [f32],
+    ) -> Result<()> {
+        let (width, height) = self.size;
+        if out.len() != kernels.len() * width * height {
+            return Err(Error::internal(format!(
+                "{} values are not the responses to {} kernels",
+                out.len(),
+                kernels.len()
+            )));
+        }
+        let half = self.convolver.bank.max_half();
+        out.par_chunks_mut(width * height).zip(kernels.0.par_iter()).try_for_each(|(plane, kernel)| {
+            self.plan.respond(&spectrum.0, kernel, (half, half), self.size, plane)
+        })
+    }
+}
+
+/// Bytes of one spectrum of the FFT frame that `bank` filters `width × height` images in
+/// (a kernel's, an image's, or a product's while a response is made).
+pub fn spectrum_bytes(bank: &FilterBank, width: usize, height: usize) -> u64 {
+    let half = bank.max_half();
+    let (fw, fh) = (fft_len(width + 2 * half), fft_len(height + 2 * half));
+    ((fw / 2 + 1) * fh * std::mem::size_of::<Complex<f32>>()) as u64
 }
 
 /// Filters one image with `bank` (see [`BankConvolver::filter`]). Transforms every kernel
@@ -286,9 +391,17 @@ fn fft_error(e: realfft::FftError) -> Error {
 
 impl SizePlan {
     fn new(fw: usize, fh: usize, bank: &FilterBank) -> Result<Self> {
+        let mut plan = SizePlan::bare(fw, fh);
+        plan.kernels =
+            bank.filters().par_iter().map(|filter| plan.kernel_spectrum(filter)).collect::<Result<_>>()?;
+        Ok(plan)
+    }
+
+    /// The plans without the kernels' spectra.
+    fn bare(fw: usize, fh: usize) -> Self {
         let mut real = RealFftPlanner::<f32>::new();
         let mut complex = FftPlanner::<f32>::new();
-        let mut plan = SizePlan {
+        SizePlan {
             fw,
             fh,
             r2c: real.plan_fft_forward(fw),
@@ -296,18 +409,15 @@ impl SizePlan {
             col_forward: complex.plan_fft_forward(fh),
             col_inverse: complex.plan_fft_inverse(fh),
             kernels: Vec::new(),
-        };
-        let scale = 1.0 / (fw * fh) as f32;
-        plan.kernels = bank
-            .filters()
-            .par_iter()
-            .map(|filter| {
-                let mut spectrum = plan.forward(&mut plan.embed(filter))?;
-                spectrum.iter_mut().for_each(|z| *z = z.conj() * scale);
-                Ok(spectrum)
-            })
-            .collect::<Result<_>>()?;
-        Ok(plan)
+        }
+    }
+
+    /// One kernel's spectrum as [`SizePlan::kernels`] holds it.
+    fn kernel_spectrum(&self, filter: &Filter) -> Result<Vec<Complex<f32>>> {
+        let scale = 1.0 / (self.fw * self.fh) as f32;
+        let mut spectrum = self.forward(&mut self.embed(filter))?;
+        spectrum.iter_mut().for_each(|z| *z = z.conj() * scale);
+        Ok(spectrum)
     }
 
     /// Number of complex columns of a spectrum (the real transform keeps half of them).

@@ -89,35 +89,96 @@ fn resident() -> Option<u64> {
     Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
 }
 
-/// What the texton stages of levels of `sizes` allocate together beyond the images they
-/// read, with a basis of at most `rank` components: the memory that running them side by
-/// side needs.
+/// Levels whose texton stages need at most this together run side by side freely; beyond
+/// it, only where side by side they need no more than the largest level alone (see
+/// [`levels_side_by_side`]), so that running them together never raises a large
+/// analysis' peak.
+pub const BESIDE_FREELY: u64 = 256 << 20;
+
+/// What the texton stages of levels of `sizes` allocate at once beyond the images they
+/// read, with a basis of at most `rank` components, when the coarser levels run one after
+/// the other beside the finest once it is filtered (its clustering, appearance vectors
+/// and Γ): the memory that running them side by side needs.
 pub fn levels_side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> u64 {
-    sizes.iter().map(|&(w, h)| level_stage((w * h) as u64, rank as u64, params, 0, 0)).sum()
+    let Some((&finest, coarser)) = sizes.split_first() else { return 0 };
+    let finest = level_phases(finest, rank as u64, params);
+    let beside = coarser.iter().map(|&size| level_phases(size, rank as u64, params).own()).max().unwrap_or(0);
+    let after_filtering = finest.clustering.max(finest.appearance);
+    (finest.components + finest.filtering).max(finest.components + after_filtering + beside)
 }
 
-/// Values of one level's texton stage: features, the responses waiting to be copied into
-/// them, the basis' components and the appearance vectors' work arrays.
-fn level_stage(texels: u64, rank: u64, params: &AnalysisParams, held: u64, images: u64) -> u64 {
+/// What the texton stages of levels of `sizes` allocate at most beyond the images they
+/// read when they run one after the other: the largest level's own.
+pub fn levels_in_turn(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> u64 {
+    sizes.iter().map(|&size| level_phases(size, rank as u64, params).own()).max().unwrap_or(0)
+}
+
+/// Bytes of one level's texton stage in its three phases (see [`super::textons`]), each
+/// beside the basis' `components`.
+struct LevelPhases {
+    components: u64,
+    /// The features, the kernels' and the planes' spectra, the responses waiting.
+    filtering: u64,
+    /// The features and what k-means copies or reduces them to.
+    clustering: u64,
+    /// The appearance vectors' work arrays, made once the features are dropped.
+    appearance: u64,
+}
+
+impl LevelPhases {
+    fn own(&self) -> u64 {
+        self.components + self.filtering.max(self.clustering).max(self.appearance)
+    }
+}
+
+fn level_phases((width, height): (usize, usize), rank: u64, params: &AnalysisParams) -> LevelPhases {
+    let texels = (width * height) as u64;
     let filters = params.filters.len() as u64;
     let threads = rayon::current_num_threads() as u64;
     let blocks = rank + 1;
     let features = texels * blocks * 3 * filters * 4;
-    // A reduced level also holds its sketch, its orthonormal basis and its coordinates.
-    let reduction = match features / 4 > super::reduce::REDUCE_ABOVE as u64 {
+    // The planes' responses are made a few filters at a time (see
+    // `features::texton_features`): with more planes than filters the kernels' spectra are
+    // held and a few planes transformed at a time, else every plane's spectrum is held and
+    // a run of kernels' made at a time; each thread also holds a product spectrum.
+    let planes = 3 * blocks;
+    let (group, spectra) = match planes > filters {
+        true => (threads.min(planes), filters + threads.min(planes)),
+        false => (planes, planes + (super::features::WAITING_VALUES as u64 / (planes * texels)).max(1)),
+    };
+    let spectrum = super::convolve::spectrum_bytes(&params.filters, width, height);
+    let waiting = (super::features::WAITING_VALUES as u64).max(group * texels).min(group * filters * texels);
+    let filtering = features + (spectra + threads) * spectrum + waiting * 4;
+    // A reduced level also holds its sketch, its orthonormal basis and its coordinates; a
+    // level of more pixels than k-means fits on copies the fitted ones.
+    let reduced = features / 4 > super::reduce::REDUCE_ABOVE as u64;
+    let fit_points = super::kmeans::DEFAULT_FIT_POINTS as u64;
+    let copied = match reduced {
         true => 3 * texels * super::reduce::PROJECTED_DIMS as u64 * 4,
+        false if texels > fit_points => fit_points * blocks * 3 * filters * 4,
         false => 0,
     };
-    // One colour channel's responses per thread wait to be copied into the features.
-    let responses = threads.min(3 * blocks) * filters * texels * 4;
-    let components = blocks * texels * 3 * 4;
     // Made after the features are dropped: the pixels' colours and their centred copy, then
     // the neighbourhoods' sketch (dims + 10 columns, in f32 and as f64 while
     // orthonormalised) and the vectors; the neighbourhoods themselves are streamed.
     let dims = params.appearance_dims as u64;
     let appearance = texels * (blocks * 3 * 4 * 2 + (dims + 10) * (4 + 8 + 4) + dims * 4);
-    // The images (or the low-rank rows) this level reads, the basis and its centred copy.
-    held + images + components + (features + responses.max(reduction)).max(appearance)
+    LevelPhases { components: blocks * texels * 3 * 4, filtering, clustering: features + copied, appearance }
+}
+
+/// Values of one level's texton stage: the images (or the low-rank rows) it reads, `held`
+/// besides, and its own arrays.
+fn level_stage(size: (usize, usize), rank: u64, params: &AnalysisParams, held: u64, images: u64) -> u64 {
+    held + images + level_phases(size, rank, params).own()
+}
+
+/// What the selection allocates to filter its components one after the other, beyond
+/// them: a component's responses (and one colour's while they are made), and the kernel
+/// spectra it caches for the rest of the selection.
+fn selection_filtering((width, height): (usize, usize), params: &AnalysisParams) -> u64 {
+    let filters = params.filters.len() as u64;
+    let responses = 3 * filters * (width * height) as u64 * 4 * 2;
+    responses + filters * super::convolve::spectrum_bytes(&params.filters, width, height)
 }
 
 /// Stages of [`super::pipeline::analyze`] on `images` decoded images of `width × height`.
@@ -133,20 +194,22 @@ pub fn decoded_stages(images: usize, (width, height): (usize, usize), params: &A
         let exact = super::basis::BasisOptions::default().exact_limit as u64;
         let block = if n <= exact { n * d } else { (d * 256).max(1 << 22) };
         let sketch = n * 74 * (4 + 8 + 4);
+        let basis = 64.min(n) * d * 4 + sketch;
         stages.push(Stage {
             name: "selecting representative images".into(),
-            bytes: stack + 2 * block * 4 + sketch,
+            bytes: stack + (2 * block * 4 + sketch).max(basis + selection_filtering((width, height), params)),
         });
     }
     let selected = n.min(params.selected as u64);
-    let rank = params.basis_rank.min(images) as u64;
+    // The centred images span at most one dimension fewer than there are.
+    let rank = (params.basis_rank as u64).min(selected.saturating_sub(1));
     for (l, &(w, h)) in level_sizes(width, height, params.levels).iter().enumerate() {
         let texels = (w * h) as u64;
         // The selected images as f32 rows and their centred copy.
         let level_images = 2 * selected * texels * 3 * 4;
         stages.push(Stage {
             name: format!("textons of level {l} ({w}x{h})"),
-            bytes: level_stage(texels, rank, params, stack, level_images),
+            bytes: level_stage((w, h), rank, params, stack, level_images),
         });
     }
     stages
@@ -173,22 +236,21 @@ pub fn low_rank_stages(
         let sketch = d * l * (4 + 8) + s.batch as u64 * d * (4 + 2) * 2;
         stages.push(Stage { name: "streaming a basis of the images".into(), bytes: held + sketch });
     }
-    let filters = params.filters.len() as u64;
     if images > params.selected {
         let components = 64.min(q) * d * 4 * 2;
-        let responses = 3 * filters * (width * height) as u64 * 4 * 2;
         stages.push(Stage {
             name: "selecting representative images".into(),
-            bytes: held + rows + components + responses,
+            bytes: held + rows + components + selection_filtering((width, height), params),
         });
     }
-    let rank_kept = params.basis_rank.min(images).min(rank.max(1)) as u64;
+    let selected = images.min(params.selected);
+    let rank_kept = params.basis_rank.min(selected.saturating_sub(1)).min(rank) as u64;
     for (l, &(w, h)) in level_sizes(width, height, params.levels).iter().enumerate() {
         let texels = (w * h) as u64;
         let level_rows = q * texels * 3 * 4;
         stages.push(Stage {
             name: format!("textons of level {l} ({w}x{h})"),
-            bytes: level_stage(texels, rank_kept, params, held + rows, level_rows),
+            bytes: level_stage((w, h), rank_kept, params, held + rows, level_rows),
         });
     }
     stages
@@ -257,6 +319,29 @@ mod tests {
         assert!(gib_of(stage) < 6.0, "{stage:?}");
         let few = decoded_stages(256, (64, 64), &params);
         assert!(few.iter().all(|s| s.name != "selecting representative images"), "{few:?}");
+    }
+
+    #[test]
+    fn a_photographs_levels_are_estimated_with_its_one_image() {
+        // One image has no principal components: its features are one block of 3 × 48
+        // columns (151 MB at 512²), not two, which also made the estimate count a reduction
+        // that never runs (1.4 GiB). Measured (docs/big-btf.md): 216 MiB with the levels in
+        // turn, 261 MiB side by side, the process' own pages included.
+        let params = AnalysisParams::default();
+        let stage = peak(&decoded_stages(1, (512, 512), &params)).cloned().unwrap();
+        let mib = stage.bytes >> 20;
+        assert!((170..260).contains(&mib) && stage.name.starts_with("textons of level 0"), "{stage:?}");
+        let sizes = level_sizes(512, 512, 3);
+        let (beside, in_turn) = (levels_side_by_side(&sizes, 0, &params), levels_in_turn(&sizes, 0, &params));
+        // Side by side, the coarser levels run beside the finest's clustering, not its
+        // filtering: they add less than the finest needs alone.
+        assert!(in_turn < beside && beside < 2 * in_turn, "{} beside, {} in turn", gib(beside), gib(in_turn));
+        // A 192² crop of a UBO2014 material (rank 32): its finest level alone sets the
+        // peak, which side by side would raise, so its levels run in turn.
+        let sizes = level_sizes(192, 192, 3);
+        let (beside, in_turn) =
+            (levels_side_by_side(&sizes, 32, &params), levels_in_turn(&sizes, 32, &params));
+        assert!(beside > in_turn.max(BESIDE_FREELY), "{} beside, {} in turn", gib(beside), gib(in_turn));
     }
 
     #[test]

@@ -8,7 +8,10 @@ use super::memory;
 pub use super::params::AnalysisParams;
 use super::pyramid::{downsample, level_sizes};
 use super::select::{representatives, representatives_from_basis, selection_basis_options};
-use super::textons::{basis_options, level_textons, level_textons_from_basis, LevelTextons, TextonOptions};
+use super::textons::{
+    basis_options, filter_level, filter_level_images, finish_level, FilteredLevel, LevelTextons,
+    TextonOptions,
+};
 use crate::btf::Btf;
 use crate::progress::{Progress, Silent};
 use crate::{Error, Result};
@@ -64,29 +67,30 @@ pub fn analyze(btf: &Btf, params: &AnalysisParams, progress: &dyn Progress) -> R
     params.validate(width, height)?;
     let started = Instant::now();
     let mut timings = Timings::default();
-    let convolver = BankConvolver::new(params.filters.clone());
     let padding = Padding::from_tileable(params.tileable);
-
+    // The selection's convolver caches the kernels' spectra at the sample's size; dropped
+    // with it, they are not held through the levels (each level's own are freed with it).
     let selected = representatives(
         &BtfRows(btf),
         (width, height),
         params.selected,
-        &convolver,
+        &BankConvolver::new(params.filters.clone()),
         padding,
         params.seed,
         progress,
     )?;
     timings.selection = started.elapsed();
+    let convolver = BankConvolver::new(params.filters.clone());
 
     let sizes = level_sizes(width, height, params.levels);
     let mut pyramid = vec![stack_rows(btf, &selected)];
     for l in 1..sizes.len() {
         pyramid.push(downsample_rows(&pyramid[l - 1], sizes[l - 1], params.tileable));
     }
-    let rank = params.basis_rank.min(selected.len());
+    let rank = params.basis_rank.min(selected.len().saturating_sub(1));
     let beside = side_by_side(&sizes, rank, params);
-    let levels = textons_per_level(sizes.len(), beside, progress, |l, progress| {
-        level_textons(pyramid[l].view(), sizes[l], &convolver, &texton_options(params, padding, l), progress)
+    let levels = textons_per_level(sizes.len(), beside, progress, |l| {
+        filter_level_images(pyramid[l].view(), sizes[l], &convolver, &texton_options(params, padding, l))
     })?;
     drop(pyramid);
     add_level_timings(&mut timings, &levels);
@@ -119,7 +123,6 @@ pub fn analyze_low_rank(
     }
     let started = Instant::now();
     let mut timings = Timings::default();
-    let convolver = BankConvolver::new(params.filters.clone());
     let padding = Padding::from_tileable(params.tileable);
 
     let selected = if stack.len() <= params.selected {
@@ -130,13 +133,14 @@ pub fn analyze_low_rank(
             &basis,
             (width, height),
             params.selected,
-            &convolver,
+            &BankConvolver::new(params.filters.clone()),
             padding,
             params.seed,
             progress,
         )?
     };
     timings.selection = started.elapsed();
+    let convolver = BankConvolver::new(params.filters.clone());
 
     let sizes = level_sizes(width, height, params.levels);
     let mut pyramid = vec![stack.select(&selected)];
@@ -144,16 +148,16 @@ pub fn analyze_low_rank(
         let (pw, ph) = sizes[l - 1];
         pyramid.push(pyramid[l - 1].map_rows(|row| downsample(row, pw, ph, 3, params.tileable).0));
     }
-    let rank = params.basis_rank.min(selected.len()).min(pyramid[0].rows.nrows().max(1));
+    let rank = params.basis_rank.min(selected.len().saturating_sub(1)).min(pyramid[0].rows.nrows());
     let beside = side_by_side(&sizes, rank, params);
-    let levels = textons_per_level(sizes.len(), beside, progress, |l, progress| {
+    let levels = textons_per_level(sizes.len(), beside, progress, |l| {
         let started = Instant::now();
         let options = texton_options(params, padding, l);
         let basis = principal_images_low_rank(&pyramid[l], &basis_options(&options))?;
         let basis_time = started.elapsed();
-        let mut textons = level_textons_from_basis(&basis, sizes[l], &convolver, &options, progress)?;
-        textons.timings.filtering += basis_time;
-        Ok(textons)
+        let mut level = filter_level(basis, sizes[l], &convolver, &options)?;
+        level.add_filtering(basis_time);
+        Ok(level)
     })?;
     drop(pyramid);
     add_level_timings(&mut timings, &levels);
@@ -178,31 +182,37 @@ fn texton_options(params: &AnalysisParams, padding: Padding, l: usize) -> Texton
 }
 
 /// Whether the levels of `sizes` run side by side: where the memory they need together fits
-/// the budget as it stands (else one after the other, within the estimate `analyze` checked
-/// before it started).
+/// the budget as it stands, and either stays below [`memory::BESIDE_FREELY`] or is no more
+/// than the largest level needs alone (else one after the other, within the estimate
+/// `analyze` checked before it started), so that the peak stays that of the levels in turn.
 fn side_by_side(sizes: &[(usize, usize)], rank: usize, params: &AnalysisParams) -> bool {
-    memory::fits_now(memory::levels_side_by_side(sizes, rank, params))
+    let (beside, in_turn) =
+        (memory::levels_side_by_side(sizes, rank, params), memory::levels_in_turn(sizes, rank, params));
+    beside <= in_turn.max(memory::BESIDE_FREELY) && memory::fits_now(beside)
 }
 
-/// The textons of `count` levels by `level(l, progress)`, finest first. Each level is made
-/// from its own images alone, so the coarser levels may run `beside` the finest (which
-/// reports to `progress`; they, a third of its work between them, report to nobody): the
-/// serial steps of one level (its eigendecompositions, k-means++ seeding, Γ's embedding)
-/// left a core idle for about a fifth of a 64² × 6,561-image BTF's analysis. Each level's
-/// result is the same to the bit whatever runs beside it.
+/// The textons of `count` levels, finest first, each filtered by `filter(l)` and then
+/// finished ([`finish_level`]). Each level is made from its own images alone, so the
+/// coarser levels may run `beside` the finest: once the finest is filtered (its features
+/// and the kernels' spectra, the largest part of its peak, are then made and the spectra
+/// freed), the coarser levels (a third of its work between them, reporting to nobody) run
+/// one after the other beside its clustering, appearance vectors and Γ, which report to
+/// `progress`. The serial steps of one level (its eigendecompositions, k-means++ seeding,
+/// Γ's embedding) left a core idle for about a fifth of a 64² × 6,561-image BTF's
+/// analysis. Each level's result is the same to the bit whatever runs beside it.
 fn textons_per_level(
     count: usize,
     beside: bool,
     progress: &dyn Progress,
-    level: impl Fn(usize, &dyn Progress) -> Result<LevelTextons> + Sync,
+    filter: impl Fn(usize) -> Result<FilteredLevel> + Sync,
 ) -> Result<Vec<LevelTextons>> {
-    use rayon::prelude::*;
-    if !beside {
-        return (0..count).map(|l| level(l, progress)).collect();
+    if !beside || count < 2 {
+        return (0..count).map(|l| finish_level(filter(l)?, progress)).collect();
     }
+    let finest = filter(0)?;
     let (finest, coarser) = rayon::join(
-        || level(0, progress),
-        || (1..count).into_par_iter().map(|l| level(l, &Silent)).collect::<Result<Vec<_>>>(),
+        || finish_level(finest, progress),
+        || (1..count).map(|l| finish_level(filter(l)?, &Silent)).collect::<Result<Vec<_>>>(),
     );
     Ok(std::iter::once(finest?).chain(coarser?).collect())
 }
@@ -312,9 +322,9 @@ mod tests {
         }
         let convolver = BankConvolver::new(params.filters.clone());
         let run = |beside| {
-            textons_per_level(3, beside, &Silent, |l, progress| {
+            textons_per_level(3, beside, &Silent, |l| {
                 let options = texton_options(&params, Padding::Wrap, l);
-                level_textons(pyramid[l].view(), sizes[l], &convolver, &options, progress)
+                filter_level_images(pyramid[l].view(), sizes[l], &convolver, &options)
             })
             .unwrap()
         };

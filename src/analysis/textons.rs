@@ -81,27 +81,68 @@ pub fn level_textons(
     options: &TextonOptions,
     progress: &dyn Progress,
 ) -> Result<LevelTextons> {
+    finish_level(filter_level_images(images, size, convolver, options)?, progress)
+}
+
+/// A level half made: its basis and its texton features, which [`finish_level`] clusters.
+/// The features are the level's largest array (at 512², 151 MB for a photo): a caller that
+/// runs levels side by side can start the others once this one's filtering, the other
+/// large part of its peak, is done.
+pub struct FilteredLevel {
+    basis: PrincipalImages,
+    features: Array2<f32>,
+    size: (usize, usize),
+    options: TextonOptions,
+    /// The basis and the filtering so far.
+    filtering: Duration,
+}
+
+/// [`filter_level`] of the principal images of `images` (one interleaved RGB image per
+/// row), the basis counted in its filtering time.
+pub fn filter_level_images(
+    images: ArrayView2<f32>,
+    size: (usize, usize),
+    convolver: &BankConvolver,
+    options: &TextonOptions,
+) -> Result<FilteredLevel> {
     let started = Instant::now();
     let basis = principal_images(images, &basis_options(options))?;
-    let mut level = level_textons_from_basis(&basis, size, convolver, options, progress)?;
-    level.timings.filtering = started.elapsed().saturating_sub(level.timings.kmeans + level.timings.gamma);
+    let mut level = filter_level(basis, size, convolver, options)?;
+    level.filtering = started.elapsed();
     Ok(level)
 }
 
-/// Textons of the images whose principal images `basis` holds (the level's images
-/// themselves are not needed: filtering is linear, see [`super::basis`]).
-pub fn level_textons_from_basis(
-    basis: &PrincipalImages,
+/// The texton features of the images whose principal images `basis` holds (the level's
+/// images themselves are not needed: filtering is linear, see [`super::basis`]).
+pub fn filter_level(
+    basis: PrincipalImages,
     (width, height): (usize, usize),
     convolver: &BankConvolver,
     options: &TextonOptions,
-    progress: &dyn Progress,
-) -> Result<LevelTextons> {
-    let mut timings = StageTimes::default();
+) -> Result<FilteredLevel> {
     let started = Instant::now();
-    let features = texton_features(basis, width, height, convolver, options.padding)?;
-    timings.filtering = started.elapsed();
+    let features = texton_features(&basis, width, height, convolver, options.padding)?;
+    Ok(FilteredLevel {
+        basis,
+        features,
+        size: (width, height),
+        options: *options,
+        filtering: started.elapsed(),
+    })
+}
 
+impl FilteredLevel {
+    /// Adds `time` to the level's filtering time (e.g. a basis made before it).
+    pub fn add_filtering(&mut self, time: Duration) {
+        self.filtering += time;
+    }
+}
+
+/// The textons of a filtered level: its features clustered, then its appearance vectors,
+/// Γ and the embedding.
+pub fn finish_level(level: FilteredLevel, progress: &dyn Progress) -> Result<LevelTextons> {
+    let FilteredLevel { basis, features, size: (width, height), options, filtering } = level;
+    let mut timings = StageTimes { filtering, ..StageTimes::default() };
     let started = Instant::now();
     let k = options.textons.min(width * height);
     let kmeans_options = KMeansOptions { k, seed: options.seed, ..KMeansOptions::default() };
@@ -120,7 +161,7 @@ pub fn level_textons_from_basis(
     let started = Instant::now();
     let wraps = matches!(options.padding, Padding::Wrap);
     let appearance =
-        appearance_vectors(basis, (width, height), options.appearance_dims, wraps, options.seed)?;
+        appearance_vectors(&basis, (width, height), options.appearance_dims, wraps, options.seed)?;
     timings.filtering += started.elapsed();
     let textons = clustering.centres.nrows();
     if textons >= u16::MAX as usize {
