@@ -24,12 +24,16 @@ pub struct Stage {
 
 pub use crate::btf::source::{memory_budget as budget, MEMORY_ENV};
 
-/// Sizes for messages: `3.2 GiB`, `640 MiB`.
+/// Sizes for messages: `3.2 GiB`, `640 MiB`, `12 KiB`, `1 byte` (a budget of a few bytes
+/// must not read as `0.0 GiB`).
 pub fn gib(bytes: u64) -> String {
-    if bytes >= 1 << 30 {
-        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
-    } else {
-        format!("{:.0} MiB", (bytes as f64 / (1u64 << 20) as f64).ceil())
+    let ceil = |unit: u64| (bytes as f64 / unit as f64).ceil();
+    match bytes {
+        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.0} MiB", ceil(1 << 20)),
+        b if b >= 1 << 10 => format!("{:.0} KiB", ceil(1 << 10)),
+        1 => "1 byte".into(),
+        b => format!("{b} bytes"),
     }
 }
 
@@ -210,6 +214,9 @@ mod tests {
         for bad in ["", "-1G", "6X", "G"] {
             assert!(parse_budget(bad).is_err(), "{bad}");
         }
+        // A tiny budget reads as what it is, not as 0.0 GiB.
+        let sizes = [1, 100, 5000, 3 << 20, 3 << 30].map(gib);
+        assert_eq!(sizes, ["1 byte", "100 bytes", "5 KiB", "3 MiB", "3.0 GiB"]);
     }
 
     #[test]

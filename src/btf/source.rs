@@ -77,10 +77,10 @@ pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Re
     match memory_budget()? {
         Some((budget, source)) if needed > budget => Err(Error::too_large(
             format!(
-                "{}: decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget ({source})",
+                "{}: decoding all {images} images would take {}, more than the {} budget ({source})",
                 path.display(),
-                needed as f64 / (1u64 << 30) as f64,
-                budget as f64 / (1u64 << 30) as f64
+                crate::analysis::memory::gib(needed),
+                crate::analysis::memory::gib(budget)
             ),
             Remedy::Crop,
         )),
