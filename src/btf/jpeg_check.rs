@@ -487,8 +487,13 @@ mod tests {
     fn scans_with_bytes_missing_are_refused() {
         // Textured, as photographs are: a smooth gradient's blocks are a few bits each, and
         // codes read out of step decode as such blocks as often as not.
-        let noise = |x: u32, y: u32, c: u32| ((x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ c.wrapping_mul(83_492_791)) >> 7) as u8;
-        let colour = image::RgbImage::from_fn(37, 21, |x, y| image::Rgb([noise(x, y, 1), noise(x, y, 2), noise(x, y, 3)]));
+        let noise = |x: u32, y: u32, c: u32| {
+            ((x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ c.wrapping_mul(83_492_791)) >> 7)
+                as u8
+        };
+        let colour = image::RgbImage::from_fn(37, 21, |x, y| {
+            image::Rgb([noise(x, y, 1), noise(x, y, 2), noise(x, y, 3)])
+        });
         let grey = image::GrayImage::from_fn(16, 9, |x, y| image::Luma([noise(x, y, 0)]));
         let (mut cuts, mut passed) = (0, Vec::new());
         for bytes in [encoded(colour.into()), encoded(grey.into())] {

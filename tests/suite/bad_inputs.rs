@@ -448,7 +448,7 @@ fn every_path_refuses_what_it_cannot_do_before_any_work() {
     assert!(!out.exists());
 
     let mut recipe = btfsynth::synth::Preset::appearance();
-    recipe.coarsest.passes = vec![recipe.coarsest.passes[0].clone(); 65];
+    recipe.coarsest.passes = vec![recipe.coarsest.passes[0]; 65];
     let recipe = common::write_recipe(&dir.path().join("recipe.json"), &recipe);
     let plane = dir.path().join("plane");
     let args =

@@ -180,7 +180,9 @@ pub fn check_size(
             })
         };
         let corners = [corner(0)?, corner(1)?, corner(2)?];
-        if let Some(far) = corners.iter().map(|p| p.abs().max_element()).find(|&c| !(c <= MAX_COORDINATE)) {
+        if let Some(far) =
+            corners.iter().map(|p| p.abs().max_element()).find(|&c| c.is_nan() || c > MAX_COORDINATE)
+        {
             return Err(Error::format(
                 path,
                 format!(
@@ -198,7 +200,7 @@ pub fn check_size(
     }
     let scale = f64::from(params.texels_per_unit);
     let texels = area * scale * scale;
-    if !(texels <= MAX_SURFACE_TEXELS) {
+    if texels.is_nan() || texels > MAX_SURFACE_TEXELS {
         let value = params.texels_per_unit;
         return Err(Error::out_of_range(
             Param::Scale,
