@@ -165,7 +165,8 @@ impl Tables {
                 .find(|c| c.0 == pair[0])
                 .ok_or_else(|| format!("a scan of component {}, which the frame lacks", pair[0]))?;
             let table = |class: usize, id: u8| {
-                self.huffman[class][usize::from(id)].as_ref().ok_or_else(|| {
+                // A damaged selector may name any of 16 ids; the file defines at most 4.
+                self.huffman[class].get(usize::from(id)).and_then(Option::as_ref).ok_or_else(|| {
                     format!("a scan that uses Huffman table {id}, which the file does not define")
                 })
             };
