@@ -22,20 +22,7 @@ pub struct Stage {
     pub bytes: u64,
 }
 
-pub use crate::btf::source::{memory_budget as budget, MEMORY_ENV};
-
-/// Sizes for messages: `3.2 GiB`, `640 MiB`, `12 KiB`, `1 byte` (a budget of a few bytes
-/// must not read as `0.0 GiB`).
-pub fn gib(bytes: u64) -> String {
-    let ceil = |unit: u64| (bytes as f64 / unit as f64).ceil();
-    match bytes {
-        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
-        b if b >= 1 << 20 => format!("{:.0} MiB", ceil(1 << 20)),
-        b if b >= 1 << 10 => format!("{:.0} KiB", ceil(1 << 10)),
-        1 => "1 byte".into(),
-        b => format!("{b} bytes"),
-    }
-}
+pub use crate::btf::source::{gib, memory_budget as budget, MEMORY_ENV};
 
 /// The stage with the largest peak.
 pub fn peak(stages: &[Stage]) -> Option<&Stage> {
