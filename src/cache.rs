@@ -7,7 +7,7 @@
 //! truncated or of other inputs is never an error: [`Lookup::Unusable`] says why, and the
 //! caller computes the result again and overwrites it.
 
-use crate::fsutil::{check_target, write_file_atomic};
+use crate::fsutil::{check_target, store_file};
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -84,7 +84,7 @@ impl CacheDir {
 
     /// The payload stored for `key`, if a whole file holds it.
     pub fn read(&self, kind: Kind, key: u64) -> Lookup {
-        match std::fs::read(self.path(kind, key)) {
+        match read_regular(&self.path(kind, key)) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Lookup::Missing,
             Err(e) => Lookup::Unusable(e.to_string()),
             // The payload is most of the file (tens of MB for a level's templates): cut the
@@ -130,12 +130,32 @@ impl CacheDir {
         Ok((value, if unusable.is_some() { Source::Recomputed } else { Source::Computed }))
     }
 
-    /// Stores `payload` under `key`; a failure is a warning (the result is still right).
+    /// Stores `payload` under `key`, replacing whatever is there (a device or FIFO in its
+    /// place too); a failure is a warning (the result is still right).
     pub fn write(&self, kind: Kind, key: u64, payload: &[u8]) {
-        if let Err(e) = write_file_atomic(&self.path(kind, key), &encode(kind, payload, key)) {
+        if let Err(e) = store_file(&self.path(kind, key), &encode(kind, payload, key)) {
             tracing::warn!("cannot store the {} in the cache: {e}", kind.name);
         }
     }
+}
+
+/// The bytes of the regular file at `path`. Anything else in its place (a device such as
+/// /dev/zero, which never ends, a FIFO, which blocks until written, a directory) is an error,
+/// found before it is opened and checked again once open.
+fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let not_a_file = || std::io::Error::other("not a regular file (a device, FIFO or directory)");
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_a_file());
+    }
+    let mut file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(not_a_file());
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 /// The file bytes of `payload` under `key`.
@@ -249,6 +269,26 @@ mod tests {
             assert!(decode(KIND, &damaged, 42).is_err(), "byte {at} flipped");
         }
         assert!(decode(KIND, &bytes[..bytes.len() - 1], 42).is_err());
+    }
+
+    /// A device or FIFO in a file's place is neither read (/dev/zero never ends, a FIFO
+    /// blocks) nor written into: it is unusable, and the result computed again replaces it.
+    #[test]
+    fn special_files_in_the_cache_are_replaced_never_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let cache = CacheDir::open(dir.path()).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", cache.path(KIND, 1)).unwrap();
+        let made = std::process::Command::new("mkfifo").arg(cache.path(KIND, 2)).status().unwrap();
+        assert!(made.success());
+        for key in [1, 2] {
+            assert!(matches!(cache.read(KIND, key), Lookup::Unusable(_)), "key {key}");
+            let decode = |p: &[u8]| Ok(p.to_vec());
+            let (value, source) =
+                cache.get_or_compute((KIND, key), decode, || Ok(vec![7u8]), |v| v.clone()).unwrap();
+            assert_eq!((value, source), (vec![7], Source::Recomputed));
+            assert!(std::fs::symlink_metadata(cache.path(KIND, key)).unwrap().is_file());
+            assert!(matches!(cache.read(KIND, key), Lookup::Found(p) if p == [7]));
+        }
     }
 
     #[test]

@@ -97,21 +97,26 @@ impl Drop for Staged {
 
 /// Commits every one of `outputs` as one step: a signal handler waits until all are in
 /// place (or, if one fails, until the rest are discarded). Outputs before a failed one stay
-/// committed.
+/// committed. A device or FIFO among them is written first, without that wait: opening a
+/// FIFO blocks until something reads it, and a signal must still end the run meanwhile.
 pub fn commit_all(mut outputs: Vec<Staged>) -> Result<Vec<PathBuf>> {
+    let mut done = vec![PathBuf::new(); outputs.len()];
+    let mut top_level = false;
+    let specials: Vec<usize> =
+        (0..outputs.len()).filter(|&i| special_kind(&outputs[i].target).is_some()).collect();
+    for &i in &specials {
+        copy_into_special(&outputs[i])?;
+        let mut register = lock_register();
+        top_level |= mark_committed(&mut outputs[i], &mut register);
+        done[i] = outputs[i].target.clone();
+    }
     // Holding the register keeps a signal handler from deleting a staged output between
     // the two renames of a replacement, which would lose both the old and the new output.
     let mut register = lock_register();
-    let mut done = Vec::with_capacity(outputs.len());
-    let mut top_level = false;
-    for staged in &mut outputs {
+    for (i, staged) in outputs.iter_mut().enumerate().filter(|(i, _)| !specials.contains(i)) {
         commit_locked(staged, &mut register)?;
-        // What a message may name as written: outputs, not files inside a staged one.
-        if !register.iter().any(|s| staged.target.starts_with(s)) {
-            lock_committed().push(staged.target.clone());
-            top_level = true;
-        }
-        done.push(staged.target.clone());
+        top_level |= mark_committed(staged, &mut register);
+        done[i] = staged.target.clone();
     }
     drop(register);
     if top_level {
@@ -120,61 +125,73 @@ pub fn commit_all(mut outputs: Vec<Staged>) -> Result<Vec<PathBuf>> {
     Ok(done)
 }
 
-fn commit_locked(staged: &mut Staged, register: &mut Vec<PathBuf>) -> Result<()> {
-    let target = staged.target.clone();
-    if let Some(special) = special_kind(&target) {
-        // A device or FIFO is written into, never replaced.
-        let copied = std::fs::File::open(&staged.staging).and_then(|mut from| {
-            let mut into = std::fs::OpenOptions::new().write(true).open(&target)?;
-            std::io::copy(&mut from, &mut into)?;
-            std::io::Write::flush(&mut into)
-        });
-        if let Err(e) = copied {
-            return Err(Error::output_refused(
-                &target,
-                format!("{}: cannot write into this {special}: {e}", target.display()),
-            ));
-        }
-        remove_any(&staged.staging);
-    } else {
-        let staging_is_dir = std::fs::symlink_metadata(&staged.staging).is_ok_and(|m| m.is_dir());
-        let existing = std::fs::symlink_metadata(&target).ok();
-        if existing.as_ref().is_some_and(|m| m.is_dir()) && !staging_is_dir {
-            return Err(Error::output_refused(
-                &target,
-                format!(
-                    "{} is a directory; this output is a file, which never replaces one",
-                    target.display()
-                ),
-            ));
-        }
-        // A file replaces a file (or a link) in one atomic rename; anything else moves the
-        // old output aside first.
-        let old = if existing.is_some() && staging_is_dir {
-            let old = temp_sibling(&target, REPLACED)?;
-            std::fs::rename(&target, &old).map_err(|e| Error::io(&target, e))?;
-            register.push(old.clone());
-            Some(old)
-        } else {
-            None
-        };
-        if let Err(e) = std::fs::rename(&staged.staging, &target) {
-            // Put the old output back: nothing is lost by a failed commit.
-            if let Some(old) = &old {
-                if std::fs::rename(old, &target).is_ok() {
-                    register.retain(|p| p != old);
-                }
-            }
-            return Err(Error::io(&target, e));
-        }
-        if let Some(old) = old {
-            // The new output is in place; a leftover old copy is only wasted space.
-            remove_any(&old);
-            register.retain(|p| *p != old);
-        }
-    }
+/// Marks `staged` committed, and records it for messages if it is an output rather than a
+/// file inside a staged one (then true).
+fn mark_committed(staged: &mut Staged, register: &mut Vec<PathBuf>) -> bool {
     register.retain(|p| *p != staged.staging);
     staged.committed = true;
+    let top_level = !register.iter().any(|s| staged.target.starts_with(s));
+    if top_level {
+        lock_committed().push(staged.target.clone());
+    }
+    top_level
+}
+
+/// Copies a finished file output into the device or FIFO it names (never replaced), then
+/// removes the temporary. Blocks until a FIFO has a reader, so never with the register
+/// held: a signal handler removes the temporary meanwhile (an open file reads on).
+fn copy_into_special(staged: &Staged) -> Result<()> {
+    let target = &staged.target;
+    let copied = std::fs::File::open(&staged.staging).and_then(|mut from| {
+        let mut into = std::fs::OpenOptions::new().write(true).open(target)?;
+        std::io::copy(&mut from, &mut into)?;
+        std::io::Write::flush(&mut into)
+    });
+    if let Err(e) = copied {
+        let special = special_kind(target).map_or("special file", Special::name);
+        return Err(Error::output_refused(
+            target,
+            format!("{}: cannot write into this {special}: {e}", target.display()),
+        ));
+    }
+    remove_any(&staged.staging);
+    Ok(())
+}
+
+fn commit_locked(staged: &mut Staged, register: &mut Vec<PathBuf>) -> Result<()> {
+    let target = staged.target.clone();
+    let staging_is_dir = std::fs::symlink_metadata(&staged.staging).is_ok_and(|m| m.is_dir());
+    let existing = std::fs::symlink_metadata(&target).ok();
+    if existing.as_ref().is_some_and(|m| m.is_dir()) && !staging_is_dir {
+        return Err(Error::output_refused(
+            &target,
+            format!("{} is a directory; this output is a file, which never replaces one", target.display()),
+        ));
+    }
+    // A file replaces a file (or a link) in one atomic rename; anything else moves the
+    // old output aside first.
+    let old = if existing.is_some() && staging_is_dir {
+        let old = temp_sibling(&target, REPLACED)?;
+        std::fs::rename(&target, &old).map_err(|e| Error::io(&target, e))?;
+        register.push(old.clone());
+        Some(old)
+    } else {
+        None
+    };
+    if let Err(e) = std::fs::rename(&staged.staging, &target) {
+        // Put the old output back: nothing is lost by a failed commit.
+        if let Some(old) = &old {
+            if std::fs::rename(old, &target).is_ok() {
+                register.retain(|p| p != old);
+            }
+        }
+        return Err(Error::io(&target, e));
+    }
+    if let Some(old) = old {
+        // The new output is in place; a leftover old copy is only wasted space.
+        remove_any(&old);
+        register.retain(|p| *p != old);
+    }
     Ok(())
 }
 
@@ -191,15 +208,33 @@ fn remove_any(path: &Path) {
     }
 }
 
-/// What a special file at `path` is ("device", "FIFO"), when `path` names a character
-/// device or a FIFO (through links): outputs are written into those, never renamed over.
-fn special_kind(path: &Path) -> Option<&'static str> {
+/// A special file an output may name: written into, never renamed over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Special {
+    /// A character device (`/dev/null`, a terminal).
+    Device,
+    /// A FIFO (a named pipe, or a shell's `>(…)`).
+    Fifo,
+}
+
+impl Special {
+    fn name(self) -> &'static str {
+        match self {
+            Special::Device => "device",
+            Special::Fifo => "FIFO",
+        }
+    }
+}
+
+/// The special file at `path` (through links), when it names a character device or a FIFO:
+/// outputs are written into those, never renamed over.
+fn special_kind(path: &Path) -> Option<Special> {
     use std::os::unix::fs::FileTypeExt;
     let kind = std::fs::metadata(path).ok()?.file_type();
     if kind.is_char_device() {
-        Some("device")
+        Some(Special::Device)
     } else if kind.is_fifo() {
-        Some("FIFO")
+        Some(Special::Fifo)
     } else {
         None
     }
@@ -222,7 +257,9 @@ fn unwritable_kind(path: &Path) -> Option<&'static str> {
 /// Fails early, before any long work, if `target` could not be written: it exists and
 /// `overwrite` is false, its parent directory is missing, or nothing can be created there
 /// (a read-only file system, `/proc`, a directory without write permission). A character
-/// device or FIFO passes (an output is written into it); a block device or socket never does.
+/// device passes with `overwrite` and a FIFO always (an output is written into either: a
+/// FIFO is a stream someone waits to read, a device exists like any file); a block device
+/// or socket never does.
 pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
     if let Some(kind) = unwritable_kind(target) {
         return Err(Error::output_refused(
@@ -230,8 +267,10 @@ pub fn check_target(target: &Path, overwrite: bool) -> Result<()> {
             format!("{} is a {kind}; btfsynth writes no output there", target.display()),
         ));
     }
-    if special_kind(target).is_some() {
-        return Ok(());
+    match special_kind(target) {
+        Some(Special::Fifo) => return Ok(()),
+        Some(Special::Device) if overwrite => return Ok(()),
+        _ => {}
     }
     if std::fs::symlink_metadata(target).is_ok() && !overwrite {
         return Err(Error::OutputExists(target.to_path_buf()));
@@ -257,7 +296,11 @@ pub fn check_dir_target(target: &Path, overwrite: bool) -> Result<()> {
     if let Some(kind) = special_kind(target) {
         return Err(Error::output_refused(
             target,
-            format!("{} is a {kind}; this output is a directory, which cannot replace it", target.display()),
+            format!(
+                "{} is a {}; this output is a directory, which cannot replace it",
+                target.display(),
+                kind.name()
+            ),
         ));
     }
     check_target(target, overwrite)
@@ -317,6 +360,27 @@ pub fn check_apart(what: &str, second: &Path, first: &Path) -> Result<()> {
     }
 }
 
+/// Refuses a directory a run keeps files of its own in (`what` names it, e.g. a cache) that
+/// is or lies inside one of `inputs` (its files would change them) or `outputs` (one would
+/// replace the other). Holding them is no harm: its files have names of their own.
+pub fn check_workspace(what: &str, dir: &Path, inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
+    for (others, kind) in [(inputs, "input"), (outputs, "output")] {
+        for other in others {
+            if let Some(why @ ("is" | "lies inside")) = overlap(dir, other) {
+                return Err(Error::output_refused(
+                    dir,
+                    format!(
+                        "{what} {} {why} the {kind} {}; give it a directory of its own",
+                        dir.display(),
+                        other.display()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// How `a` overlaps `b`: it "is" `b`, "holds" it or "lies inside" it (None: apart, or
 /// unresolvable).
 fn overlap(a: &Path, b: &Path) -> Option<&'static str> {
@@ -363,6 +427,24 @@ pub fn write_with_temp(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> 
     write(staged.path())?;
     hold_for_tests();
     staged.commit().map(|_| ())
+}
+
+/// Writes a file the program keeps for itself (a cache entry) atomically: under a temporary
+/// name, renamed over whatever is in its place but a directory. Unlike an output, a device,
+/// FIFO or link there is replaced, never written into or through, and the file is not one of
+/// the run's outputs (an interrupted run's message names only those).
+pub fn store_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut staged = Staged::reserve(path)?;
+    std::fs::write(staged.path(), bytes).map_err(|e| Error::io(path, e))?;
+    let mut register = lock_register();
+    let renamed = std::fs::rename(&staged.staging, path);
+    if renamed.is_ok() {
+        register.retain(|p| *p != staged.staging);
+        staged.committed = true;
+    }
+    // Unlocked before `staged` is dropped: its clean-up takes the register.
+    drop(register);
+    renamed.map_err(|e| Error::io(path, e))
 }
 
 /// Reads a whole input file. A device is refused (`/dev/zero` would never end), and a pipe
@@ -433,6 +515,10 @@ pub fn remove_staged() -> Vec<PathBuf> {
 pub fn without_temporary_names(text: &str) -> String {
     let pid = std::process::id();
     let mut out = text.to_string();
+    // Names cut short first, the latest (a temporary of a temporary) first.
+    for (temporary, name) in lock_aliases().iter().rev() {
+        out = out.replace(temporary, name);
+    }
     for tag in [TEMPORARY, REPLACED, PROBE] {
         let marker = format!(".{tag}-{pid}");
         // Each pass removes one marker and the dot it added, so nested names unwind.
@@ -466,14 +552,20 @@ const REPLACED: &str = "old";
 const REMOVED: &str = "removed";
 const PROBE: &str = "probe";
 
-/// `dir/.name.TAG-PID` (the extension is kept last so format detection still works).
+/// The longest file name most file systems take, in bytes (ext4, XFS, btrfs, tmpfs).
+const NAME_MAX: usize = 255;
+
+/// `dir/.name.TAG-PID` (the extension is kept last so format detection still works). A name
+/// too long for that is cut short, so that every legal name can be written (its full form
+/// is remembered for messages, see [`without_temporary_names`]).
 fn temp_sibling(path: &Path, tag: &str) -> Result<PathBuf> {
+    use std::os::unix::ffi::OsStrExt;
     let name = path
         .file_name()
         .ok_or_else(|| {
             Error::output_refused(path, format!("{}: not a file or directory name", path.display()))
         })?
-        .to_string_lossy();
+        .as_bytes();
     let parent = parent_of(path);
     if !parent.is_dir() {
         return Err(Error::output_refused(
@@ -481,11 +573,30 @@ fn temp_sibling(path: &Path, tag: &str) -> Result<PathBuf> {
             format!("{}: the directory {} does not exist", path.display(), parent.display()),
         ));
     }
-    let (stem, ext) = match name.rsplit_once('.') {
-        Some((s, e)) if !s.is_empty() => (s.to_string(), format!(".{e}")),
-        _ => (name.to_string(), String::new()),
+    let suffix = format!(".{tag}-{}", std::process::id());
+    // An extension longer than this is no format's: it may be cut with the rest.
+    let (stem, ext) = match name.iter().rposition(|&b| b == b'.') {
+        Some(dot) if dot > 0 && name.len() - dot <= 16 => name.split_at(dot),
+        _ => (name, &b""[..]),
     };
-    Ok(parent.join(format!(".{stem}.{tag}-{}{ext}", std::process::id())))
+    let room = NAME_MAX - 1 - suffix.len() - ext.len();
+    let temporary = [b".", &stem[..stem.len().min(room)], suffix.as_bytes(), ext].concat();
+    let temporary = std::ffi::OsStr::from_bytes(&temporary);
+    if stem.len() > room {
+        let alias = (temporary.to_string_lossy().into_owned(), String::from_utf8_lossy(name).into_owned());
+        let mut aliases = lock_aliases();
+        if !aliases.contains(&alias) {
+            aliases.push(alias);
+        }
+    }
+    Ok(parent.join(temporary))
+}
+
+/// Temporary names cut short, with the names they stand for (see [`temp_sibling`]).
+static ALIASES: Mutex<Vec<(String, String)>> = Mutex::new(Vec::new());
+
+fn lock_aliases() -> std::sync::MutexGuard<'static, Vec<(String, String)>> {
+    ALIASES.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 fn parent_of(path: &Path) -> PathBuf {
@@ -576,6 +687,43 @@ mod tests {
         let dir = tempfile::tempdir().expect("temp dir");
         check_target(&dir.path().join("out"), false).expect("a writable directory passes");
         assert!(std::fs::read_dir(dir.path()).expect("lists").next().is_none(), "the probe is removed");
+    }
+
+    /// A name of 255 bytes (the most a file system takes) gets a temporary cut to fit, and
+    /// messages still name the output.
+    #[test]
+    fn the_longest_legal_names_get_a_temporary_that_fits() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let names = ["a".repeat(255), format!("{}.ply", "b".repeat(251)), format!("c.{}", "x".repeat(253))];
+        for name in &names {
+            let target = dir.path().join(name);
+            let temporary = temp_sibling(&target, TEMPORARY).expect("a temporary name");
+            assert!(temporary.file_name().expect("a name").len() <= NAME_MAX, "{}", temporary.display());
+            assert_eq!(
+                without_temporary_names(&temporary.display().to_string()),
+                target.display().to_string()
+            );
+            write_file_atomic(&target, b"x").expect("writes");
+            assert_eq!(std::fs::read(&target).expect("reads"), b"x");
+        }
+        assert_eq!(
+            std::fs::read_dir(dir.path()).expect("lists").count(),
+            names.len(),
+            "no temporary is left"
+        );
+    }
+
+    /// An existing device is an existing output: written into only with `overwrite`. A FIFO
+    /// is a stream someone waits to read, written into either way.
+    #[test]
+    fn a_device_needs_overwrite_and_a_fifo_does_not() {
+        let e = check_target(Path::new("/dev/null"), false).unwrap_err();
+        assert!(matches!(e, Error::OutputExists(_)), "{e}");
+        check_target(Path::new("/dev/null"), true).expect("written into with overwrite");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let fifo = dir.path().join("f");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo").success());
+        check_target(&fifo, false).expect("a FIFO is written into");
     }
 
     #[test]

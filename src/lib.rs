@@ -60,6 +60,7 @@
 pub mod analysis;
 pub mod btf;
 pub mod cache;
+pub mod env;
 pub mod error;
 pub mod eval;
 pub mod export;

@@ -22,16 +22,7 @@ pub struct Stage {
     pub bytes: u64,
 }
 
-pub use crate::btf::source::{memory_budget as budget, MEMORY_ENV};
-
-/// Sizes for messages: `3.2 GiB`, `640 MiB`.
-pub fn gib(bytes: u64) -> String {
-    if bytes >= 1 << 30 {
-        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
-    } else {
-        format!("{:.0} MiB", (bytes as f64 / (1u64 << 20) as f64).ceil())
-    }
-}
+pub use crate::btf::source::{gib, memory_budget as budget, MEMORY_ENV};
 
 /// The stage with the largest peak.
 pub fn peak(stages: &[Stage]) -> Option<&Stage> {
@@ -272,6 +263,9 @@ mod tests {
         for bad in ["", "-1G", "6X", "G"] {
             assert!(parse_budget(bad).is_err(), "{bad}");
         }
+        // A tiny budget reads as what it is, not as 0.0 GiB.
+        let sizes = [1, 100, 5000, 3 << 20, 3 << 30].map(gib);
+        assert_eq!(sizes, ["1 byte", "100 bytes", "5 KiB", "3 MiB", "3.0 GiB"]);
     }
 
     #[test]

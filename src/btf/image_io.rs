@@ -96,65 +96,7 @@ fn decode_8_or_16_bit(bytes: &[u8], path: &Path) -> Result<RgbImage> {
     Ok(decoded_to_linear(decoded, false))
 }
 
-/// Walks a JPEG's markers from start to end of image: every segment and every scan's
-/// entropy-coded data must be there in full. JPEG decoders paint the rows of a truncated
-/// file flat grey without an error, so a cut-off file would otherwise pass as an image.
-pub(crate) fn check_jpeg_complete(bytes: &[u8]) -> Result<(), String> {
-    let truncated = || "the JPEG is truncated (it ends before its end-of-image marker)".to_string();
-    if bytes.len() < 2 || bytes[..2] != [0xFF, 0xD8] {
-        return Err("not a JPEG image (no start-of-image marker)".into());
-    }
-    let mut i = 2;
-    loop {
-        if i >= bytes.len() {
-            return Err(truncated());
-        }
-        if bytes[i] != 0xFF {
-            return Err(format!("the JPEG is damaged: no marker at byte {i}"));
-        }
-        while bytes.get(i) == Some(&0xFF) {
-            i += 1;
-        }
-        let Some(&marker) = bytes.get(i) else { return Err(truncated()) };
-        i += 1;
-        match marker {
-            0xD9 => return Ok(()),
-            // Markers without a length: restart markers and TEM.
-            0xD0..=0xD7 | 0x01 => continue,
-            0x00 | 0xD8 => return Err(format!("the JPEG is damaged: unexpected marker at byte {}", i - 2)),
-            _ => {}
-        }
-        let Some(length) = bytes.get(i..i + 2).map(|b| usize::from(u16::from_be_bytes([b[0], b[1]]))) else {
-            return Err(truncated());
-        };
-        if length < 2 {
-            return Err(format!("the JPEG is damaged: a segment of length {length} at byte {i}"));
-        }
-        i += length;
-        if i > bytes.len() {
-            return Err(truncated());
-        }
-        if marker == 0xDA {
-            // Entropy-coded data: 0xFF is followed by 0x00 (a stuffed byte), a restart
-            // marker, or the marker that ends the scan.
-            loop {
-                let Some(at) = bytes[i..].iter().position(|&b| b == 0xFF) else { return Err(truncated()) };
-                let mut j = i + at;
-                while bytes.get(j + 1) == Some(&0xFF) {
-                    j += 1;
-                }
-                match bytes.get(j + 1) {
-                    None => return Err(truncated()),
-                    Some(0x00 | 0xD0..=0xD7) => i = j + 2,
-                    Some(_) => {
-                        i = j;
-                        break;
-                    }
-                }
-            }
-        }
-    }
-}
+pub(crate) use super::jpeg_check::check_jpeg_complete;
 
 /// A decoded image as linear f16 RGB: `linear` images (EXR) as they are, 8- and 16-bit
 /// ones through the sRGB curve (a lookup table for 8 bits).

@@ -68,6 +68,29 @@ pub fn load(path: &Path, options: &LoadOptions, progress: &dyn Progress) -> Resu
     read_entries(&entries, options, progress)
 }
 
+/// Every path that reading the stack at `path` reads, for a command to refuse an output
+/// that would replace one: `path` itself and, for a `btf.json` manifest (or a folder holding
+/// one), the manifest's folder and every image it names, which may lie outside that folder
+/// (`"file": "../a.png"`). A manifest that cannot be read adds no images (reading the stack
+/// fails then anyway), and one that is not a regular file is not read here (a pipe would be
+/// read empty by the time the stack is).
+pub fn input_paths(path: &Path) -> Vec<PathBuf> {
+    let mut paths = vec![path.to_path_buf()];
+    let manifest = if path.is_dir() { path.join(MANIFEST) } else { path.to_path_buf() };
+    let is_json = manifest.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if !is_json || !std::fs::metadata(&manifest).is_ok_and(|m| m.is_file()) {
+        return paths;
+    }
+    if !path.is_dir() {
+        paths.push(match manifest.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => PathBuf::from("."),
+        });
+    }
+    paths.extend(manifest_entries(&manifest).into_iter().flatten().map(|e| e.file));
+    paths
+}
+
 /// A stack of image files (a folder, a `btf.json` or one image) whose images are read
 /// when asked for: [`crate::btf::ImageSource`] for stacks too large to hold, which the
 /// analysis streams (see `analysis::basis::streamed_basis`).

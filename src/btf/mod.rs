@@ -12,6 +12,7 @@ pub mod factored;
 pub mod factorize;
 pub mod gen;
 pub mod image_io;
+mod jpeg_check;
 pub mod load;
 pub mod names;
 pub mod source;

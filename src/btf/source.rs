@@ -77,10 +77,10 @@ pub fn ensure_fits_in_memory(path: &Path, images: usize, per_image: usize) -> Re
     match memory_budget()? {
         Some((budget, source)) if needed > budget => Err(Error::too_large(
             format!(
-                "{}: decoding all {images} images would take {:.1} GiB, more than the {:.1} GiB budget ({source})",
+                "{}: decoding all {images} images would take {}, more than the {} budget ({source})",
                 path.display(),
-                needed as f64 / (1u64 << 30) as f64,
-                budget as f64 / (1u64 << 30) as f64
+                gib(needed),
+                gib(budget)
             ),
             Remedy::Crop,
         )),
@@ -153,4 +153,17 @@ pub fn resolve_crop(path: &Path, crop: Option<Crop>, width: usize, height: usize
         ));
     }
     Ok(c)
+}
+
+/// Sizes for messages: `3.2 GiB`, `640 MiB`, `12 KiB`, `1 byte` (a budget of a few bytes
+/// must not read as `0.0 GiB`).
+pub fn gib(bytes: u64) -> String {
+    let ceil = |unit: u64| (bytes as f64 / unit as f64).ceil();
+    match bytes {
+        b if b >= 1 << 30 => format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.0} MiB", ceil(1 << 20)),
+        b if b >= 1 << 10 => format!("{:.0} KiB", ceil(1 << 10)),
+        1 => "1 byte".into(),
+        b => format!("{b} bytes"),
+    }
 }

@@ -130,12 +130,13 @@ fn load_maps(args: &AnalyzeArgs, (width, height): (usize, usize)) -> Result<Vec<
 }
 
 pub fn run(args: AnalyzeArgs, bars: &Bars) -> Result<()> {
-    // A manifest's images lie in its directory: that is the input.
-    let stack_dir = args.stack.parent().filter(|_| args.stack.extension().is_some_and(|e| e == "json"));
+    // A manifest's folder and every image it names are inputs too.
+    let stack_inputs = btfsynth::btf::load::input_paths(&args.stack);
     let map_files: Vec<&Path> = args.maps.iter().flat_map(|m| m.0.iter().map(|s| s.path.as_path())).collect();
-    let inputs: Vec<&Path> = [Some(args.stack.as_path()), stack_dir, args.filters.as_deref()]
-        .into_iter()
-        .flatten()
+    let inputs: Vec<&Path> = stack_inputs
+        .iter()
+        .map(PathBuf::as_path)
+        .chain(args.filters.as_deref())
         .chain(map_files.iter().copied())
         .collect();
     check_not_input("-o", &args.output, &inputs)?;

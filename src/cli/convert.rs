@@ -84,8 +84,9 @@ pub fn run(args: ConvertArgs, bars: &Bars) -> Result<()> {
         true => Target::Btf,
         false => Target::Folder,
     });
-    let stack_dir = args.input.parent().filter(|_| args.input.extension().is_some_and(|e| e == "json"));
-    let inputs: Vec<&Path> = [Some(args.input.as_path()), stack_dir].into_iter().flatten().collect();
+    // A manifest's folder and every image it names are inputs too.
+    let stack_inputs = btfsynth::btf::load::input_paths(&args.input);
+    let inputs: Vec<&Path> = stack_inputs.iter().map(PathBuf::as_path).collect();
     check_not_input("-o", &args.output, &inputs)?;
     // The output is complete, and checked, before it replaces anything: the last step.
     let staged = match target {

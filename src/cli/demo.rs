@@ -12,7 +12,7 @@ use btfsynth::render::cpu::{render_sequence, RenderOptions};
 use btfsynth::render::{FrameFormat, Material, Orbit, Scene, SequenceWriter, ShotPlan};
 use btfsynth::synth::plane::{synthesize_plane, write_plane};
 use btfsynth::synth::surface_map::{
-    build_pyramid, synthesize_surface, write_surface_ply, Density, SurfaceMap,
+    build_pyramid, comment_paths, escape_path, synthesize_surface, write_surface_ply, Density, SurfaceMap,
 };
 use btfsynth::synth::{Sample, Search, SynthParams};
 use std::path::{Path, PathBuf};
@@ -222,8 +222,9 @@ impl Relocation {
             .lines()
             .map(|line| match line.split_once(' ') {
                 Some(("comment", rest)) => match rest.split_once(' ') {
-                    Some((key, value)) => match self.text(value) {
-                        Some(moved) => format!("comment {key} {moved}"),
+                    // Paths are escaped in headers (`escape_path`).
+                    Some((key, value)) => match self.text(&comment_paths(value)[0].display().to_string()) {
+                        Some(moved) => format!("comment {key} {}", escape_path(Path::new(&moved))),
                         None => line.to_string(),
                     },
                     None => line.to_string(),

@@ -57,6 +57,12 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         evaluate_uv_map(&args.analysis, &map)?
     } else if is_picture(&args.result) {
         evaluate_picture(&args.analysis, &args.result)?
+    } else if has_extension(&args.result, &["exr"]) {
+        // Most likely a frame `render` or `view` wrote: named as such, not as a damaged PLY.
+        bail!(
+            "{}: an EXR image (a rendered frame?), not a result eval measures: {EXPECTED}",
+            args.result.display()
+        );
     } else if args.result.is_file() {
         let map = read_surface_ply(&args.result)?;
         check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
@@ -69,10 +75,7 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
             .unwrap_or(5) as usize;
         evaluate_surface(&args.analysis, &map, neighborhood, &args.result)?
     } else {
-        bail!(
-            "{}: not a result: expected a plane directory, a surface map PLY, a soler2002 uvmap (.ply/.obj) or a PNG/JPEG picture",
-            args.result.display()
-        );
+        bail!("{}: not a result: {EXPECTED}", args.result.display());
     };
     if args.json {
         super::print(serde_json::to_string(&evaluation)?)?;
@@ -81,6 +84,10 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
     }
     Ok(())
 }
+
+/// What `eval` measures, for messages about what it does not.
+const EXPECTED: &str =
+    "expected a plane directory, a surface map PLY, a soler2002 uvmap (.ply/.obj) or a PNG/JPEG picture";
 
 /// Refuses an analysis of another sample than the one the result records (`recorded`),
 /// unless `--force-analysis`. A picture records none.
@@ -99,8 +106,13 @@ fn plane_fingerprint(dir: &std::path::Path) -> Option<String> {
 }
 
 fn is_picture(path: &std::path::Path) -> bool {
+    path.is_file() && has_extension(path, &["png", "jpg", "jpeg"])
+}
+
+/// Whether `path` ends in one of `extensions` (lower case; the path's in any case).
+fn has_extension(path: &std::path::Path, extensions: &[&str]) -> bool {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-    path.is_file() && matches!(ext.as_deref(), Some("png" | "jpg" | "jpeg"))
+    ext.is_some_and(|e| extensions.contains(&e.as_str()))
 }
 
 fn table(args: &EvalArgs, e: &Evaluation) -> String {

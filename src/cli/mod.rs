@@ -80,6 +80,12 @@ pub fn main() -> ExitCode {
         Err(e) => return usage_error(e),
     };
     init_logging(cli.verbose);
+    // Every variable the library reads, whichever command runs: a bad value is a mistake in
+    // the invocation, refused before any work.
+    if let Err(e) = btfsynth::env::check() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     clean_up_when_interrupted();
     if let Some(threads) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {

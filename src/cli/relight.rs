@@ -65,7 +65,9 @@ pub fn run(args: RelightArgs, bars: &Bars) -> Result<()> {
         (None, _, Some(_)) => None,
     };
     let env_file = args.lighting.env_file();
-    let inputs: Vec<&Path> = [Some(args.input.as_path()), env_file].into_iter().flatten().collect();
+    // A stack's manifest folder and every image it names are inputs too.
+    let stack_inputs = btfsynth::btf::load::input_paths(&args.input);
+    let inputs: Vec<&Path> = stack_inputs.iter().map(PathBuf::as_path).chain(env_file).collect();
     btfsynth::fsutil::check_not_input("-o", &args.output, &inputs)?;
     let staged = btfsynth::fsutil::Staged::file(&args.output, args.force)?;
     let material = Material::open_any(&args.input, bars)?;

@@ -174,12 +174,13 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
-/// `θ,φ` in degrees, θ in [0, 180].
+/// `θ,φ` in degrees, θ in [0, 180] and φ in [-360, 360] (as [`btfsynth::btf::Direction`] takes it).
 pub fn parse_angles(s: &str) -> Result<(f32, f32), String> {
-    let bad = || format!("'{s}': expected θ,φ in degrees, θ from 0 to 180, e.g. 45,30");
+    let bad =
+        || format!("'{s}': expected θ,φ in degrees, θ from 0 to 180 and φ from -360 to 360, e.g. 45,30");
     let (t, p) = s.split_once(',').ok_or_else(bad)?;
     match (t.trim().parse::<f32>(), p.trim().parse::<f32>()) {
-        (Ok(t), Ok(p)) if (0.0..=180.0).contains(&t) && p.is_finite() => Ok((t, p)),
+        (Ok(t), Ok(p)) if (0.0..=180.0).contains(&t) && (-360.0..=360.0).contains(&p) => Ok((t, p)),
         _ => Err(bad()),
     }
 }

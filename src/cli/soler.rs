@@ -8,7 +8,7 @@ use btfsynth::analysis::images::SampleImages;
 use btfsynth::fsutil::{commit_all, Staged};
 use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
 use btfsynth::synth::patches::output::{write_uv_map, Provenance};
-use btfsynth::synth::patches::{map_mesh, SolerParams};
+use btfsynth::synth::patches::{check_size, map_mesh, SolerParams};
 use std::path::Path;
 use std::time::Instant;
 
@@ -100,33 +100,37 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     let started = Instant::now();
     let manifest = btfsynth::analysis::store::read_manifest(common.analysis)?;
     let tileable = manifest.params.tileable;
-    let images = SampleImages::open(common.analysis)?;
-    // The sample as seen head-on (a photograph's only image).
-    let shown = images.default_probes()[0].image;
-    let (w, h) = (images.width, images.height);
+    // The sample's size as the analysis records it, for the bounds below.
+    let (w, h) = (manifest.width, manifest.height);
     let colour = match args.colour_space {
         ColourArg::Lab | ColourArg::Appearance => ColourSpace::Lab,
         ColourArg::Hsv => ColourSpace::Hsv,
         ColourArg::Rgb => ColourSpace::Rgb,
     };
-    let sample = match args.colour_space {
-        ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
-        _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
-    };
+    // The mesh and the size are checked before the sample is read: nothing is worked on
+    // that a bound then refuses.
     let mesh = btfsynth::mesh::textured::load_textured(common.mesh)?;
     let texels_per_unit = match (common.scale, common.texels_across) {
         (Some(s), _) => s,
         (None, across) => {
             let (lo, hi) = btfsynth::mesh::bounds_of(&mesh.positions);
             let side = (hi - lo).max_element();
-            // NaN fails too: a mesh without finite extent.
+            // NaN fails too: a mesh without finite extent. The file's fault, not a flag's.
             if side.is_nan() || side <= 0.0 {
-                return Err(usage(format!(
-                    "{}: the mesh has no extent to scale a texture to",
-                    common.mesh.display()
-                )));
+                return Err(btfsynth::Error::format(
+                    common.mesh,
+                    "the mesh has no extent to scale a texture to (are all its vertices at one point?)",
+                )
+                .into());
             }
-            across.unwrap_or(4.0 * w as f32) / side
+            let texels_per_unit = across.unwrap_or(4.0 * w as f32) / side;
+            if !texels_per_unit.is_finite() {
+                let why = format!(
+                    "the mesh is {side:e} across, too small to scale a texture to in single precision"
+                );
+                return Err(btfsynth::Error::format(common.mesh, why).into());
+            }
+            texels_per_unit
         }
     };
     let params = SolerParams {
@@ -152,6 +156,20 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
             mesh.triangles.len().saturating_sub(1)
         )));
     }
+    let channels = match args.colour_space {
+        ColourArg::Appearance => APPEARANCE_CHANNELS,
+        _ => 3,
+    };
+    check_size(&mesh.positions, &mesh.triangles, common.mesh, &params, (w, h, channels))
+        .map_err(|e| size_error(e, &common))?;
+    let images = SampleImages::open(common.analysis)?;
+    // The sample as seen head-on (a photograph's only image).
+    let shown = images.default_probes()[0].image;
+    let (w, h) = (images.width, images.height);
+    let sample = match args.colour_space {
+        ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
+        _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
+    };
     let result = map_mesh(&mesh.positions, &mesh.triangles, common.mesh, sample, &params, bars)?;
     let colour_name = format!("{:?}", args.colour_space).to_lowercase();
     let mut params_json = serde_json::json!({
@@ -223,14 +241,40 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     Ok(())
 }
 
-/// The analysis' finest appearance vectors (at most 8 dimensions) as the fitting image.
+/// The most appearance dimensions the fitting image takes.
+const APPEARANCE_CHANNELS: usize = 8;
+
+/// A refusal of [`check_size`]: a size beyond the limit as a usage error naming the flag
+/// that set it (`--texels-across`, also where its default was taken); the file's fault, or
+/// the memory budget's (as the vertex engine's), as it is.
+fn size_error(e: btfsynth::Error, common: &Common) -> anyhow::Error {
+    match e {
+        btfsynth::Error::OutOfRange { param: btfsynth::Param::Scale, message, remedy, .. }
+            if common.scale.is_none() =>
+        {
+            let across = common.texels_across.map_or("its default".to_string(), |a| a.to_string());
+            let e = btfsynth::Error::OutOfRange {
+                param: btfsynth::Param::TexelsAcross,
+                value: across,
+                message,
+                remedy,
+            };
+            super::usage_of(e)
+        }
+        e @ btfsynth::Error::OutOfRange { .. } => super::usage_of(e),
+        e => e.into(),
+    }
+}
+
+/// The analysis' finest appearance vectors (at most [`APPEARANCE_CHANNELS`] dimensions) as
+/// the fitting image.
 fn appearance_image(analysis: &Path, tileable: bool) -> Result<FitImage> {
     let sample = btfsynth::synth::Sample::open(analysis, 1)?;
     let level = &sample.levels[0];
     let map = level.appearance.as_ref().ok_or_else(|| {
         usage(format!("{}: this analysis has no appearance vectors (re-run analyze)", analysis.display()))
     })?;
-    let dims = map.dims.min(8);
+    let dims = map.dims.min(APPEARANCE_CHANNELS);
     let mut values = Vec::with_capacity(level.width * level.height * dims);
     for y in 0..level.height as i64 {
         for x in 0..level.width as i64 {

@@ -4,7 +4,7 @@ use super::progress::Bars;
 use super::{usage, usage_of};
 use anyhow::{Context, Result};
 use btfsynth::cache::CacheDir;
-use btfsynth::fsutil::{check_apart, check_not_input, commit_all, Staged};
+use btfsynth::fsutil::{check_apart, check_not_input, check_workspace, commit_all, Staged};
 use btfsynth::mesh::field::Orientation;
 use btfsynth::synth::plane::{synthesize_plane, write_plane};
 use btfsynth::synth::round::MarchingOrigin;
@@ -198,6 +198,11 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
             .flatten()
             .collect();
     check_not_input("-o", &output, &inputs)?;
+    if let (Some(cache), Some(_)) = (&args.cache, &args.mesh) {
+        let outputs: Vec<&Path> =
+            [Some(output.as_path()), args.report.as_deref()].into_iter().flatten().collect();
+        check_workspace("--cache", cache, &inputs, &outputs).map_err(usage_of)?;
+    }
     let staged_output = match args.plane {
         Some(_) => Staged::dir(&output, args.force)?,
         None => Staged::file(&output, args.force)?,
@@ -320,6 +325,9 @@ fn soler2002(
     if args.vertices.is_some() || args.recipe.is_some() || args.preset != "appearance" || args.cache.is_some()
     {
         return Err(usage("--method soler2002 takes --scale or --texels-across, not --vertices, --preset, --recipe or --cache"));
+    }
+    if args.device == DeviceKind::Gpu {
+        return Err(usage("--method soler2002 runs on the CPU; --device gpu is for the vertex engine"));
     }
     let common = super::soler::Common {
         analysis,

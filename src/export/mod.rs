@@ -544,20 +544,22 @@ pub fn original_mesh(surface: &Path, given: Option<&Path>) -> Result<PathBuf> {
             Err(Error::out_of_range(Param::Mesh, path.display(), "no such file"))
         };
     }
+    use crate::synth::surface_map::{comment_paths, comment_value, MESH_ABSOLUTE_KEY, MESH_KEY};
     let comments = surface_comments(surface)?;
-    let field =
-        |key: &str| comments.iter().find_map(|c| c.strip_prefix(key)).map(|v| PathBuf::from(v.trim()));
-    let written = field("mesh ").ok_or_else(|| {
-        Error::unavailable(
+    let field = |key: &str| comment_value(&comments, key).map(comment_paths).unwrap_or_default();
+    let written = field(MESH_KEY);
+    let Some(first) = written.first().cloned() else {
+        return Err(Error::unavailable(
             format!("{}: no 'mesh' comment in the header", surface.display()),
             Remedy::GiveMesh,
-        )
-    })?;
-    let beside = surface.parent().map(|dir| dir.join(&written));
-    let candidates = [Some(written.clone()), beside, field("mesh_absolute ")];
-    candidates.into_iter().flatten().find(|p| p.is_file()).ok_or_else(|| {
+        ));
+    };
+    let beside: Vec<PathBuf> =
+        written.iter().filter_map(|w| surface.parent().map(|dir| dir.join(w))).collect();
+    let candidates = written.into_iter().chain(beside).chain(field(MESH_ABSOLUTE_KEY));
+    candidates.into_iter().find(|p| p.is_file()).ok_or_else(|| {
         Error::unavailable(
-            format!("{}: its original mesh {} is missing", surface.display(), written.display()),
+            format!("{}: its original mesh {} is missing", surface.display(), first.display()),
             Remedy::GiveMesh,
         )
     })

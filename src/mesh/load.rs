@@ -43,8 +43,15 @@ pub const MAX_VERTEX_TRIANGLES: usize = 1024;
 
 /// Refuses a vertex in more than [`MAX_VERTEX_TRIANGLES`] triangles.
 fn check_fans(mesh: &Mesh, path: &Path) -> Result<()> {
-    let mut count = vec![0usize; mesh.vertex_count()];
-    for t in mesh.triangles() {
+    check_fans_of(mesh.triangles(), mesh.vertex_count(), path)
+}
+
+/// Refuses a vertex of `triangles` (over `vertices` vertices, named `path` in errors) in
+/// more than [`MAX_VERTEX_TRIANGLES`] of them: every path that meshes or maps a file
+/// refuses a huge polygon at once.
+pub(crate) fn check_fans_of(triangles: &[[u32; 3]], vertices: usize, path: &Path) -> Result<()> {
+    let mut count = vec![0usize; vertices];
+    for t in triangles {
         for &i in t {
             count[i as usize] += 1;
         }

@@ -338,7 +338,9 @@ pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Resul
     let dir = match analysis {
         Some(a) => a.to_path_buf(),
         None => crate::synth::surface_map::find_analysis(&comments, path).ok_or_else(|| {
-            let named = comment(ANALYSIS_KEY).unwrap_or("none");
+            let named = comment(ANALYSIS_KEY).map(crate::synth::surface_map::comment_paths);
+            let named = named.and_then(|n| n.first().map(|p| p.display().to_string()));
+            let named = named.as_deref().unwrap_or("none");
             Error::unavailable(
                 format!(
                     "{}: its analysis ({named}) is missing, beside the map and at its recorded path",

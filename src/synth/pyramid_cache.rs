@@ -81,25 +81,154 @@ fn hash_shape(h: &mut Fnv1a, shape: LevelShape) {
     h.write(&shape.texel.to_le_bytes());
 }
 
+/// What a remeshing read from the cache must fit: the mesh it remeshes, the edge length it
+/// aims for and the vertex count it comes to, where that is known. A file whose checksum and
+/// key are right but whose payload is another run's (renamed, or a key shared by accident) is
+/// refused unless it is a sound remeshing of this shape at this density: about the same
+/// bounding box, no edge of zero length, and within 10% (and 64) of that vertex count, which
+/// the remesher meets within 5% from 100 vertices on (a count asked of the cow, dragon,
+/// teapot and bunny; a refinement, four times the level above's); without one, between half
+/// and twice the count that equilateral triangles of the edge length give (met within 12%).
+#[derive(Clone, Copy)]
+pub struct MeshFit<'a> {
+    /// The mesh remeshed (the input).
+    pub reference: &'a Mesh,
+    /// The edge length aimed for.
+    pub edge: f32,
+    /// The vertex count it comes to, where that is known (asked for, or implied).
+    pub vertices: Option<usize>,
+}
+
+/// What a level's templates read from the cache must fit: its vertex count and template
+/// side and, below the coarsest level, the coarser level's vertex count and the parent
+/// template side. Every vertex a slot, a shift or a link names must be one of those.
+#[derive(Clone, Copy, Debug)]
+pub struct LevelFit {
+    /// Vertices of the level.
+    pub vertices: usize,
+    /// Side of its templates.
+    pub template: usize,
+    /// Vertices of the coarser level and the side of the parent templates, if any.
+    pub coarse: Option<(usize, usize)>,
+}
+
 /// A remeshing made by `remesh`, whose key ([`remesh_key`], [`refine_key`]) is `key`,
-/// through `cache` where one is given.
+/// through `cache` where one is given; a cached one must `fit`.
 pub fn remeshed(
     cache: Option<&CacheDir>,
-    key: u64,
+    (key, fit): (u64, MeshFit),
     remesh: impl FnOnce() -> Result<Mesh>,
 ) -> Result<(Mesh, Source)> {
     let Some(cache) = cache else { return Ok((remesh()?, Source::Computed)) };
-    cache.get_or_compute((REMESH, key), decode_mesh, remesh, encode_mesh)
+    let decode = |bytes: &[u8]| decode_mesh(bytes).and_then(|mesh| mesh_fits(mesh, fit));
+    cache.get_or_compute((REMESH, key), decode, remesh, encode_mesh)
 }
 
-/// A level's templates and links built by `build`, through `cache` where one is given.
+/// A level's templates and links built by `build`, through `cache` where one is given; cached
+/// ones must `fit`.
 pub fn templates(
     cache: Option<&CacheDir>,
-    key: u64,
+    (key, fit): (u64, LevelFit),
     build: impl FnOnce() -> Result<TargetLevel>,
 ) -> Result<(TargetLevel, Source)> {
     let Some(cache) = cache else { return Ok((build()?, Source::Computed)) };
-    cache.get_or_compute((TEMPLATES, key), decode_level, build, encode_level)
+    let decode = |bytes: &[u8]| decode_level(bytes).and_then(|level| level_fits(level, fit));
+    cache.get_or_compute((TEMPLATES, key), decode, build, encode_level)
+}
+
+/// `mesh` if it is a sound remeshing of `fit.reference` (see [`MeshFit`]).
+fn mesh_fits(mesh: Mesh, fit: MeshFit) -> Res<Mesh> {
+    if let Some(i) = mesh.positions().iter().position(|p| !p.is_finite()) {
+        return Err(format!("vertex {i} is not finite"));
+    }
+    for (f, t) in mesh.triangles().iter().enumerate() {
+        let [a, b, c] = t.map(|i| mesh.positions()[i as usize]);
+        if a == b || b == c || c == a {
+            return Err(format!("face {f} has an edge of zero length"));
+        }
+    }
+    let n = mesh.vertex_count() as f64;
+    let (low, high) = match fit.vertices {
+        Some(asked) => (0.9 * asked as f64 - 64.0, 1.1 * asked as f64 + 64.0),
+        None => {
+            // Two equilateral triangles of side L per vertex.
+            let equilateral =
+                2.0 * fit.reference.surface_area() / (3f64.sqrt() * f64::from(fit.edge).powi(2));
+            (equilateral / 2.0 - 64.0, 2.0 * equilateral + 64.0)
+        }
+    };
+    if !(low..=high).contains(&n) {
+        return Err(format!(
+            "it has {n} vertices, where this remeshing has {:.0} to {high:.0}",
+            low.max(0.0)
+        ));
+    }
+    let ((lo, hi), (rlo, rhi)) =
+        (crate::mesh::bounds_of(mesh.positions()), crate::mesh::bounds_of(fit.reference.positions()));
+    // Coarse levels cut thin parts short by a few edges, and finer ones refine those.
+    let slack = 2.0 * fit.edge + 0.1 * (rhi - rlo).length();
+    if (lo - rlo).abs().max_element() > slack || (hi - rhi).abs().max_element() > slack {
+        return Err("it does not cover the input mesh (another mesh's remeshing?)".into());
+    }
+    Ok(mesh)
+}
+
+/// `level` if every part fits `fit` (see [`LevelFit`]).
+fn level_fits(level: TargetLevel, fit: LevelFit) -> Res<TargetLevel> {
+    let wrong =
+        |what: &str| format!("{what} do not fit {} vertices and {}² templates", fit.vertices, fit.template);
+    if (level.vertices, level.template) != (fit.vertices, fit.template) {
+        return Err(wrong(&format!("{} vertices and {}² templates", level.vertices, level.template)));
+    }
+    neighbourhoods_fit(&level.neighbourhoods, fit.vertices, fit.template).map_err(wrong)?;
+    match (fit.coarse, &level.parent_neighbourhoods) {
+        (None, None) if level.parents.is_empty() => {}
+        (Some((coarse, side)), Some(parents)) => {
+            let linked = level.parent_template == side
+                && level.parents.len() == fit.vertices
+                && level
+                    .parents
+                    .iter()
+                    .all(|l| (l.vertex as usize) < coarse && l.offset.iter().all(|o| o.is_finite()));
+            if !linked {
+                return Err(wrong("its links to the coarser level"));
+            }
+            neighbourhoods_fit(parents, coarse, side).map_err(wrong)?;
+        }
+        _ => return Err(wrong("its links to a coarser level")),
+    }
+    Ok(level)
+}
+
+/// Whether `n` holds a `template`² square of slots for each of `vertices` vertices, naming
+/// only those vertices, with finite weights and offsets; which part does not, if not.
+fn neighbourhoods_fit(
+    n: &Neighbourhoods,
+    vertices: usize,
+    template: usize,
+) -> std::result::Result<(), &'static str> {
+    let Neighbourhoods::Mesh { template: side, slots, shift_start, shifts } = n else {
+        return Err("a grid's templates");
+    };
+    let vertex = |v: u32| (v as usize) < vertices;
+    let slot_fits = |s: &Slot| {
+        (s.vertices[0] == crate::sentinel::OUTSIDE || s.vertices.iter().all(|&v| vertex(v)))
+            && s.weights.iter().all(|w| w.is_finite())
+    };
+    if *side != template
+        || template.checked_mul(template).and_then(|t| t.checked_mul(vertices)) != Some(slots.len())
+    {
+        return Err("its template slots");
+    }
+    if !slots.iter().all(slot_fits) {
+        return Err("its template slots' vertices");
+    }
+    if shift_start.len() != vertices + 1
+        || !shifts.iter().all(|(v, o)| vertex(*v) && o.iter().all(|x| x.is_finite()))
+    {
+        return Err("its patches' vertices");
+    }
+    Ok(())
 }
 
 fn encode_mesh(mesh: &Mesh) -> Vec<u8> {
@@ -166,24 +295,8 @@ fn decode_level(bytes: &[u8]) -> std::result::Result<TargetLevel, String> {
         parent_neighbourhoods,
         round: None,
     };
-    check_level(&level)?;
+    // Whether its parts fit the run, and so each other, is `level_fits`'s to say.
     Ok(level)
-}
-
-/// The sizes a level's parts must agree on, so that a file of other inputs that shares a
-/// key by accident is refused rather than indexed past its end.
-fn check_level(level: &TargetLevel) -> std::result::Result<(), String> {
-    let Neighbourhoods::Mesh { template, slots, shift_start, .. } = &level.neighbourhoods else {
-        return Err("a grid level is never cached".into());
-    };
-    let fits = *template == level.template
-        && Some(slots.len()) == template.checked_mul(*template).and_then(|t| t.checked_mul(level.vertices))
-        && shift_start.len() == level.vertices + 1
-        && (level.parents.is_empty() || level.parents.len() == level.vertices);
-    if !fits {
-        return Err(format!("its parts do not fit {} vertices and {template}² templates", level.vertices));
-    }
-    Ok(())
 }
 
 type Res<T> = std::result::Result<T, String>;
@@ -307,15 +420,69 @@ mod tests {
         let (mesh, frames, texel) = bunny();
         let level = surface_level(&mesh, &frames, texel, 5).unwrap();
         let bytes = encode_level(&level);
-        assert_eq!(decode_level(&bytes).unwrap(), level);
+        let fit = LevelFit { vertices: mesh.vertex_count(), template: 5, coarse: None };
+        let decode = |bytes: &[u8]| decode_level(bytes).and_then(|l| level_fits(l, fit));
+        assert_eq!(decode(&bytes).unwrap(), level);
         let back = decode_mesh(&encode_mesh(&mesh)).unwrap();
         assert_eq!((back.positions(), back.triangles()), (mesh.positions(), mesh.triangles()));
         for cut in [1, 8, bytes.len() / 3, bytes.len() - 1] {
-            assert!(decode_level(&bytes[..cut]).is_err(), "cut at {cut}");
+            assert!(decode(&bytes[..cut]).is_err(), "cut at {cut}");
         }
         let mut huge = bytes.clone();
         huge[16..24].copy_from_slice(&u64::MAX.to_le_bytes());
-        assert!(decode_level(&huge).is_err());
+        assert!(decode(&huge).is_err());
+    }
+
+    /// A whole, self-consistent payload of another run (another level, another mesh) is
+    /// refused where it does not fit this one, never indexed past the mesh's end.
+    #[test]
+    fn a_payload_of_other_inputs_is_refused_by_what_the_run_needs() {
+        let (mesh, frames, texel) = bunny();
+        let level = surface_level(&mesh, &frames, texel, 5).unwrap();
+        let bytes = encode_level(&level);
+        let n = mesh.vertex_count();
+        let fit = LevelFit { vertices: n, template: 5, coarse: None };
+        let decode = |fit: LevelFit| decode_level(&bytes).and_then(|l| level_fits(l, fit));
+        assert!(decode(fit).is_ok());
+        for other in [
+            LevelFit { vertices: n - 1, ..fit },
+            LevelFit { template: 7, ..fit },
+            LevelFit { coarse: Some((n / 4, 3)), ..fit },
+        ] {
+            assert!(decode(other).is_err(), "{other:?}");
+        }
+        // The right sizes, but a slot naming a vertex past the mesh's.
+        let mut wrong = level.clone();
+        if let Neighbourhoods::Mesh { slots, .. } = &mut wrong.neighbourhoods {
+            let inside = slots.iter_mut().find(|s| s.vertices[0] != crate::sentinel::OUTSIDE).unwrap();
+            inside.vertices[1] = n as u32;
+        }
+        let e = decode_level(&encode_level(&wrong)).and_then(|l| level_fits(l, fit)).unwrap_err();
+        assert!(e.contains("slots' vertices"), "{e}");
+
+        let mesh_fit = MeshFit { reference: &mesh, edge: texel, vertices: None };
+        assert!(mesh_fits(mesh.clone(), mesh_fit).is_ok());
+        assert!(
+            mesh_fits(mesh.clone(), MeshFit { edge: texel * 4.0, ..mesh_fit }).is_err(),
+            "another density"
+        );
+        let asked = |n: usize| MeshFit { vertices: Some(n), ..mesh_fit };
+        assert!(mesh_fits(mesh.clone(), asked(n)).is_ok());
+        assert!(mesh_fits(mesh.clone(), asked(n * 6 / 5 + 64)).is_err(), "another vertex count");
+        let diagonal = {
+            let (lo, hi) = crate::mesh::bounds_of(mesh.positions());
+            (hi - lo).length()
+        };
+        let moved = Mesh::from_valid_parts(
+            mesh.positions().iter().map(|&p| p + glam::Vec3::X * diagonal).collect(),
+            mesh.triangles().to_vec(),
+        );
+        assert!(mesh_fits(moved, mesh_fit).is_err(), "another mesh");
+        let mut pinched = mesh.positions().to_vec();
+        let t = mesh.triangles()[0];
+        pinched[t[1] as usize] = pinched[t[0] as usize];
+        let pinched = Mesh::from_valid_parts(pinched, mesh.triangles().to_vec());
+        assert!(mesh_fits(pinched, mesh_fit).unwrap_err().contains("zero length"));
     }
 
     /// Every input of a level's templates moves its key.

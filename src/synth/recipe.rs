@@ -48,6 +48,10 @@ pub enum Start {
 /// unrelated part of the sample and the inherited structure is gone.
 pub const MAX_JITTER: f32 = 4.0;
 
+/// The most passes one level of a recipe may run: every preset runs at most 4, and each
+/// pass costs as much as the first (10,000 coarsest passes took 32 s and 322 MB).
+pub const MAX_PASSES: usize = 64;
+
 impl Start {
     /// Whether the level starts from the coarser level's map ([`Start::Inherit`] or
     /// [`Start::Jittered`]).
@@ -547,7 +551,8 @@ impl Preset {
     }
 
     /// Refuses a recipe the engine cannot run as written, in what its types leave open: a
-    /// coarsest level that inherits (it has no parent), a level without passes, a parent
+    /// coarsest level that inherits (it has no parent), a level without passes or with more
+    /// than [`MAX_PASSES`], a parent
     /// neighbourhood on the coarsest level, patches seamed by a round pass, round passes
     /// that disagree on their circles, and numbers out of range. (A recipe read from JSON
     /// has been validated already.)
@@ -559,6 +564,12 @@ impl Preset {
         for (level, recipe) in [("coarsest", &self.coarsest), ("finer", &self.finer)] {
             if recipe.passes.is_empty() {
                 return refuse(format!("the {level} level has no passes (give at least one)"));
+            }
+            if recipe.passes.len() > MAX_PASSES {
+                return refuse(format!(
+                    "the {level} level has {} passes, more than {MAX_PASSES}",
+                    recipe.passes.len()
+                ));
             }
             if let Start::Patches { radius } = recipe.start {
                 if !(radius.is_finite() && radius > 0.0) {

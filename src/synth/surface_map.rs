@@ -6,7 +6,9 @@
 //! binary PLY of the finest mesh.
 
 use super::engine::State;
-use super::pyramid_cache::{refine_key, remesh_key, remeshed, templates, templates_key, LevelShape};
+use super::pyramid_cache::{
+    refine_key, remesh_key, remeshed, templates, templates_key, LevelFit, LevelShape, MeshFit,
+};
 use super::round::{MarchedLevel, MarchingCache};
 use super::surface::{link_levels, narrowed, surface_level};
 use super::target::TargetLevel;
@@ -235,7 +237,10 @@ impl PyramidInput<'_> {
         let edge = self.texel * (1 << l) as f32;
         let (remeshed, source) = match above {
             Some(above) => {
-                let key = refine_key(self.mesh, above, edge);
+                // Half the edge of the level above: four times its vertices (3.93 to 4.02
+                // measured on the bunny's levels).
+                let fit = MeshFit { reference: self.mesh, edge, vertices: Some(4 * above.vertex_count()) };
+                let key = (refine_key(self.mesh, above, edge), fit);
                 remeshed(self.cache, key, || refine(above, self.mesh, edge, progress))?
             }
             None => {
@@ -244,7 +249,14 @@ impl PyramidInput<'_> {
                     Density::Vertices(n) => RemeshParams::vertex_count(self.mesh, (n >> (2 * l)).max(4)),
                     _ => RemeshParams::edge_length(edge),
                 };
-                remeshed(self.cache, remesh_key(self.mesh, &target), || remesh(self.mesh, &target, progress))?
+                let fit = MeshFit {
+                    reference: self.mesh,
+                    edge: target.target_edge_length,
+                    vertices: target.vertex_count,
+                };
+                remeshed(self.cache, (remesh_key(self.mesh, &target), fit), || {
+                    remesh(self.mesh, &target, progress)
+                })?
             }
         };
         let remeshed = remeshed.with_normals();
@@ -297,7 +309,12 @@ impl PyramidInput<'_> {
         let template = self.params.neighborhood;
         let parent_template = parent_size(template);
         let key = templates_key(fine.shape(), template, coarse.map(|(c, _)| (c.shape(), parent_template)));
-        templates(self.cache, key, || {
+        let fit = LevelFit {
+            vertices: fine.mesh.vertex_count(),
+            template,
+            coarse: coarse.map(|(c, _)| (c.mesh.vertex_count(), parent_template)),
+        };
+        templates(self.cache, (key, fit), || {
             let mut target = surface_level(&fine.mesh, &fine.frames, fine.texel, template)?;
             if let Some((c, coarse_own)) = coarse {
                 let coarse_templates = narrowed(coarse_own, parent_template)?;
@@ -346,25 +363,9 @@ pub fn write_surface_ply(
     (analysis, mesh): (&Path, &Path),
     params: &serde_json::Value,
 ) -> Result<()> {
-    let (relative, absolute) = analysis_paths(analysis, path);
-    let mut comments = vec![SURFACE_COMMENT.to_string(), format!("{ANALYSIS_KEY} {}", relative.display())];
-    if let Some(absolute) = absolute {
-        comments.push(format!("{ANALYSIS_ABSOLUTE_KEY} {}", absolute.display()));
-    }
-    if let Ok(manifest) = crate::analysis::store::read_manifest(analysis) {
-        comments.push(format!("{ANALYSIS_FINGERPRINT_KEY} {}", manifest.source.fingerprint));
-    }
-    comments.extend([
-        format!("mesh {}", mesh.display()),
-        format!(
-            "mesh_absolute {}",
-            std::path::absolute(mesh).unwrap_or_else(|_| mesh.to_path_buf()).display()
-        ),
-        format!("texel {}", level.texel),
-        format!("params {params}"),
-    ]);
-    // A path holding a line break cannot go into a header; the map then names none.
-    comments.retain(|c| !c.contains(['\n', '\r']));
+    let mut comments = vec![SURFACE_COMMENT.to_string()];
+    comments.extend(input_comments(analysis, mesh, path));
+    comments.extend([format!("texel {}", level.texel), format!("params {params}")]);
     let component = |c: usize| level.frames.s.iter().map(|s| s[c]).collect::<Vec<f32>>();
     let (sx, sy, sz) = (component(0), component(1), component(2));
     let texton: Vec<u32> = state.labels.iter().map(|&l| l as u32).collect();
@@ -380,6 +381,88 @@ pub fn write_surface_ply(
     ];
     let comments: Vec<&str> = comments.iter().map(String::as_str).collect();
     ply::write(path, &level.mesh, &properties, &comments)
+}
+
+/// Header key of the original mesh, as it was given.
+pub const MESH_KEY: &str = "mesh";
+/// Header key of the original mesh's absolute path.
+pub const MESH_ABSOLUTE_KEY: &str = "mesh_absolute";
+
+/// The header comments that name a result's inputs: the analysis relative to the result
+/// `output` and absolute, and its fingerprint; the mesh as given and absolute. Paths are
+/// written by [`escape_path`], so that any name comes back whole ([`comment_paths`]).
+pub(crate) fn input_comments(analysis: &Path, mesh: &Path, output: &Path) -> Vec<String> {
+    let (relative, absolute) = analysis_paths(analysis, output);
+    let mut comments = vec![format!("{ANALYSIS_KEY} {}", escape_path(&relative))];
+    if let Some(absolute) = absolute {
+        comments.push(format!("{ANALYSIS_ABSOLUTE_KEY} {}", escape_path(&absolute)));
+    }
+    if let Ok(manifest) = crate::analysis::store::read_manifest(analysis) {
+        comments.push(format!("{ANALYSIS_FINGERPRINT_KEY} {}", manifest.source.fingerprint));
+    }
+    let mesh_absolute = std::path::absolute(mesh).unwrap_or_else(|_| mesh.to_path_buf());
+    comments.push(format!("{MESH_KEY} {}", escape_path(mesh)));
+    comments.push(format!("{MESH_ABSOLUTE_KEY} {}", escape_path(&mesh_absolute)));
+    comments
+}
+
+/// `path` as a header comment holds it: its characters, with `%`, control characters
+/// (line breaks included), bytes that are not UTF-8 and white space at either end (which
+/// readers trim) written as `%XX` per byte. Every name comes back whole through
+/// [`comment_paths`]; an ordinary one reads as it is.
+pub fn escape_path(path: &Path) -> String {
+    use std::os::unix::ffi::OsStrExt;
+    // Each character's bytes, or a byte that is no character, and whether to escape it.
+    let mut pieces: Vec<(&[u8], bool)> = Vec::new();
+    for chunk in path.as_os_str().as_bytes().utf8_chunks() {
+        let valid = chunk.valid();
+        for (at, c) in valid.char_indices() {
+            pieces.push((&valid.as_bytes()[at..at + c.len_utf8()], c == '%' || c.is_control()));
+        }
+        pieces.extend(chunk.invalid().iter().map(|b| (std::slice::from_ref(b), true)));
+    }
+    let blank =
+        |p: &&mut (&[u8], bool)| std::str::from_utf8(p.0).is_ok_and(|c| c.chars().all(char::is_whitespace));
+    pieces.iter_mut().take_while(blank).for_each(|p| p.1 = true);
+    pieces.iter_mut().rev().take_while(blank).for_each(|p| p.1 = true);
+    let mut out = String::new();
+    for (bytes, escape) in pieces {
+        match escape {
+            true => bytes.iter().for_each(|b| out.push_str(&format!("%{b:02X}"))),
+            false => out.push_str(&String::from_utf8_lossy(bytes)),
+        }
+    }
+    out
+}
+
+/// The paths a header comment's `value` may name, most likely first: [`escape_path`]'s
+/// form decoded, then the value as written if that differs (a map written before paths were
+/// escaped holds them raw, and a raw name may hold a `%`).
+pub fn comment_paths(value: &str) -> Vec<PathBuf> {
+    use std::os::unix::ffi::OsStringExt;
+    let bytes = value.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok());
+        match hex.filter(|_| bytes[i] == b'%').and_then(|h| u8::from_str_radix(h, 16).ok()) {
+            Some(b) => {
+                decoded.push(b);
+                i += 3;
+            }
+            None => {
+                decoded.push(bytes[i]);
+                i += 1;
+            }
+        }
+    }
+    let decoded = PathBuf::from(std::ffi::OsString::from_vec(decoded));
+    let raw = PathBuf::from(value);
+    if decoded == raw {
+        vec![decoded]
+    } else {
+        vec![decoded, raw]
+    }
 }
 
 /// The analysis directory relative to the directory `ply` is written into (so the pair can
@@ -444,15 +527,17 @@ pub fn comment_value<'a>(comments: &'a [String], key: &str) -> Option<&'a str> {
 /// The analysis a result read from `ply` names in its `comments` (see
 /// [`SurfaceMap::find_analysis`]; texture-mapped results record it the same way).
 pub fn find_analysis(comments: &[String], ply: &Path) -> Option<PathBuf> {
-    let written = comment_value(comments, ANALYSIS_KEY).map(PathBuf::from);
-    let beside = written.as_ref().filter(|w| w.is_relative()).map(|w| match ply.parent() {
+    let named = |key: &str| comment_value(comments, key).map(comment_paths).unwrap_or_default();
+    let written = named(ANALYSIS_KEY);
+    let beside = written.iter().filter(|w| w.is_relative()).map(|w| match ply.parent() {
         Some(dir) => dir.join(w),
         None => w.clone(),
     });
-    let absolute = comment_value(comments, ANALYSIS_ABSOLUTE_KEY).map(PathBuf::from);
-    [beside, absolute, written]
+    let beside: Vec<PathBuf> = beside.collect();
+    beside
         .into_iter()
-        .flatten()
+        .chain(named(ANALYSIS_ABSOLUTE_KEY))
+        .chain(written)
         .find(|dir| dir.join(crate::analysis::store::MANIFEST).is_file())
 }
 
@@ -573,4 +658,38 @@ fn read_triangles(body: &[u8], faces: usize) -> Option<Vec<[u32; 3]>> {
             (record[0] == 3).then(|| corners.map(|i| u32::try_from(i).unwrap_or(u32::MAX)))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::ffi::OsStrExt;
+
+    /// Every name a file system takes comes back whole through a header comment, and an
+    /// ordinary one is written as it is.
+    #[test]
+    fn paths_round_trip_through_header_comments() {
+        let names: [&[u8]; 8] = [
+            b"an sp ",
+            b" lead",
+            b"two\nlines",
+            b"tab\tand\rreturn",
+            b"latin1 \xe9t\xe9",
+            b"50% done",
+            "caf\u{e9} \u{a0}".as_bytes(),
+            b"plain/dir.analysis",
+        ];
+        for name in names {
+            let path = Path::new(std::ffi::OsStr::from_bytes(name));
+            let escaped = escape_path(path);
+            assert!(!escaped.contains(['\n', '\r']) && escaped.trim() == escaped, "{escaped:?}");
+            // A header line is trimmed and read as UTF-8 text, losing nothing now.
+            let comment = format!("{ANALYSIS_KEY} {escaped}");
+            let read = comment_value(std::slice::from_ref(&comment), ANALYSIS_KEY).expect("a value");
+            assert_eq!(comment_paths(read)[0], path, "{escaped:?}");
+        }
+        assert_eq!(escape_path(Path::new("plain/dir.analysis")), "plain/dir.analysis");
+        // A map written before paths were escaped named them raw: tried too.
+        assert_eq!(comment_paths("50%25 done"), [PathBuf::from("50% done"), PathBuf::from("50%25 done")]);
+    }
 }

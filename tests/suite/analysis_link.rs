@@ -97,3 +97,49 @@ fn an_analysis_of_another_sample_is_refused_unless_forced() {
         assert!(matched.status.success(), "its own analysis: {}", String::from_utf8_lossy(&matched.stderr));
     }
 }
+
+/// Names a header line cannot hold as they are (spaces at the end, a line break, bytes that
+/// are not UTF-8) are recorded whole: a surface map and a soler2002 result find their own
+/// analysis, not one whose name differs only there, and export finds the original mesh.
+#[test]
+fn odd_names_come_back_whole_from_a_results_header() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let gravel = common::analyze_gravel_crop(dir.path(), "gravel");
+    let named = |bytes: &[u8]| dir.path().join(std::ffi::OsStr::from_bytes(bytes));
+    // The analysis under an odd name, and a decoy under the name a lossy reading gives.
+    let (odd, decoy) = (named(b"an sp \n\xe9 "), named(b"an sp"));
+    for copy in [&odd, &decoy] {
+        std::fs::create_dir(copy).unwrap();
+        for file in std::fs::read_dir(&gravel).unwrap() {
+            let file = file.unwrap().path();
+            std::fs::copy(&file, copy.join(file.file_name().unwrap())).unwrap();
+        }
+    }
+    let mesh = named(b"bu\nny \xe9 .obj");
+    std::fs::copy(BUNNY, &mesh).unwrap();
+    let run = |args: &[&std::ffi::OsStr]| {
+        let r =
+            std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth")).arg("-q").args(args).output().unwrap();
+        assert!(r.status.success(), "{:?}: {}", args, String::from_utf8_lossy(&r.stderr));
+    };
+    let (surface, uv) = (dir.path().join("surface.ply"), dir.path().join("uv.ply"));
+    let os = |p: &Path| p.as_os_str().to_owned();
+    let synth = |extra: &[&str], out: &Path| {
+        let mut args: Vec<std::ffi::OsString> =
+            vec!["synth".into(), os(&odd), os(&mesh), "-o".into(), os(out)];
+        args.extend(extra.iter().map(|e| e.into()));
+        run(&args.iter().map(|a| a.as_os_str()).collect::<Vec<_>>());
+    };
+    synth(&["--vertices", "1500"], &surface);
+    synth(&["--method", "soler2002", "--texels-across", "64"], &uv);
+    let map = btfsynth::synth::surface_map::read_surface_ply(&surface).unwrap();
+    assert_eq!(map.find_analysis(&surface), Some(odd.clone()));
+    let comments = btfsynth::synth::patches::output::read_uv_map(&uv).unwrap().comments;
+    assert_eq!(btfsynth::synth::surface_map::find_analysis(&comments, &uv), Some(odd.clone()));
+    assert_eq!(btfsynth::export::original_mesh(&surface, None).unwrap(), mesh);
+    // And the command line uses them: render finds the map's analysis from its header.
+    let frames = dir.path().join("frames");
+    let o = std::ffi::OsStr::new;
+    run(&[o("render"), surface.as_os_str(), o("--size"), o("16x16"), o("-o"), frames.as_os_str()]);
+}

@@ -265,11 +265,8 @@ fn a_mesh_that_is_mostly_degenerate_is_refused() {
     assert_one_line_error(&btfsynth(&["info", mesh.to_str().unwrap()]), "10 of 11 faces are degenerate");
 }
 
-#[test]
-fn a_huge_polygon_is_refused_at_once() {
-    let dir = tempfile::tempdir().unwrap();
-    let mesh = dir.path().join("disc.obj");
-    let n = 10_000;
+/// Writes a disc of one `n`-sided polygon to `path`.
+fn write_disc(path: &std::path::Path, n: usize) {
     let mut text = String::new();
     for i in 0..n {
         let a = i as f64 / n as f64 * std::f64::consts::TAU;
@@ -280,7 +277,14 @@ fn a_huge_polygon_is_refused_at_once() {
         text.push_str(&format!(" {i}"));
     }
     text.push('\n');
-    std::fs::write(&mesh, text).unwrap();
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn a_huge_polygon_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("disc.obj");
+    write_disc(&mesh, 10_000);
     let started = std::time::Instant::now();
     let out = dir.path().join("out.ply");
     let r = btfsynth(&["remesh", mesh.to_str().unwrap(), "--vertices", "500", "-o", out.to_str().unwrap()]);
@@ -388,4 +392,68 @@ fn a_surface_synthesis_that_would_not_fit_in_memory_is_refused_before_remeshing(
         .unwrap();
     assert_one_line_error(&run, "at synthesis' peak, more than the 100 MiB budget (BTFSYNTH_MEMORY=100M)");
     assert!(!out.exists(), "nothing is written");
+}
+
+/// soler2002 refuses in one line, before any work, what it cannot map, as the vertex engine
+/// does: a texture too large for the surface (the flag's mistake, exit 2, naming it) or for
+/// the memory budget, a huge polygon, coordinates beyond single precision, a mesh of one
+/// point (exit 1). A recipe of more passes than any run needs is refused too.
+#[test]
+fn every_path_refuses_what_it_cannot_do_before_any_work() {
+    use common::{analyze_gravel_crop, assert_usage_error, BUNNY};
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let out = dir.path().join("out.ply");
+    let soler = |mesh: &str, extra: &[&str], memory: &str| {
+        let args =
+            ["synth", analysis.to_str().unwrap(), mesh, "--method", "soler2002", "-o", out.to_str().unwrap()];
+        std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+            .args(args)
+            .args(extra)
+            .env("BTFSYNTH_MEMORY", memory)
+            .output()
+            .unwrap()
+    };
+    assert_usage_error(&soler(BUNNY, &["--scale", "1e6"], "unlimited"), "--scale 1e6: puts");
+    assert_usage_error(&soler(BUNNY, &["--scale", "1e30"], "unlimited"), "more than 2^26");
+    assert_usage_error(
+        &soler(BUNNY, &["--texels-across", "1e9"], "unlimited"),
+        "--texels-across 1000000000: puts",
+    );
+    // Beyond the memory budget: exit 1, as the vertex engine's refusal.
+    assert_one_line_error(&soler(BUNNY, &[], "1K"), "more than the 1 KiB budget (BTFSYNTH_MEMORY=1K)");
+    assert_usage_error(&soler(BUNNY, &["--device", "gpu"], "unlimited"), "--device gpu");
+
+    let bunny = std::fs::read_to_string(BUNNY).unwrap();
+    let scaled = |f: &dyn Fn(f64) -> f64| {
+        let line = |l: &str| match l.strip_prefix("v ") {
+            Some(v) => format!(
+                "v {}",
+                v.split_whitespace().map(|x| f(x.parse().unwrap()).to_string()).collect::<Vec<_>>().join(" ")
+            ),
+            None => l.to_string(),
+        };
+        bunny.lines().map(line).collect::<Vec<_>>().join("\n")
+    };
+    let (far, point, disc) =
+        (dir.path().join("far.obj"), dir.path().join("point.obj"), dir.path().join("disc.obj"));
+    std::fs::write(&far, scaled(&|x| x * 1e30)).unwrap();
+    std::fs::write(&point, scaled(&|_| 1.0)).unwrap();
+    write_disc(&disc, 2_000);
+    let file = |p: &std::path::PathBuf| p.to_str().unwrap().to_string();
+    assert_one_line_error(&soler(&file(&far), &[], "unlimited"), "whose square single precision holds");
+    assert_one_line_error(&soler(&file(&point), &[], "unlimited"), "no extent");
+    assert_one_line_error(&soler(&file(&point), &["--scale", "10"], "unlimited"), "no face has an area");
+    assert_one_line_error(&soler(&file(&disc), &[], "unlimited"), "vertex 0 is a corner of 1998 triangles");
+    assert!(!out.exists());
+
+    let mut recipe = btfsynth::synth::Preset::appearance();
+    recipe.coarsest.passes = vec![recipe.coarsest.passes[0]; 65];
+    let recipe = common::write_recipe(&dir.path().join("recipe.json"), &recipe);
+    let plane = dir.path().join("plane");
+    let args =
+        ["synth", analysis.to_str().unwrap(), "--plane", "16x16", "--recipe", recipe.to_str().unwrap()];
+    let r = btfsynth(&[&args[..], &["-o", plane.to_str().unwrap()]].concat());
+    assert_usage_error(&r, "the coarsest level has 65 passes, more than 64");
+    assert!(!plane.exists());
 }

@@ -93,6 +93,11 @@ fn messages_carry_no_rust_debug_text() {
     let r = btfsynth(&["render", ply.to_str().unwrap(), "--size", "16x16", "-o", frames.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success() && stderr.contains("pixel mode") && !stderr.contains("Pixel"), "{stderr}");
+    // A rendered frame given to eval is named as what it is, not as a damaged PLY.
+    let frame = std::fs::read_dir(&frames).unwrap().map(|e| e.unwrap().path());
+    let frame = frame.filter(|p| p.extension().is_some_and(|e| e == "exr")).min().expect("an EXR frame");
+    let r = btfsynth(&["eval", a, frame.to_str().unwrap()]);
+    assert_one_line_error(&r, "an EXR image (a rendered frame?), not a result eval measures");
     let header = std::fs::read(&ply).unwrap();
     let header =
         String::from_utf8_lossy(&header[..header.windows(10).position(|w| w == b"end_header").unwrap()]);
@@ -161,6 +166,8 @@ fn every_value_has_a_range_checked_before_any_work() {
         (vec!["remesh", BUNNY, "--vertices", "100000000", "-o", p], "--vertices"),
         (vec!["remesh", BUNNY, "--edge", "1e-9", "-o", p], "vertices, more than 50000000"),
         (vec!["convert", texture, "--components", "0", "-o", o], "--components"),
+        (vec!["relight", texture, "--view", "0,-720", "--light", "0,0", "-o", o], "--view"),
+        (vec!["relight", texture, "--view", "0,1e30", "--light", "0,0", "-o", o], "--view"),
     ];
     for (args, needle) in cases {
         let started = std::time::Instant::now();
@@ -208,4 +215,36 @@ fn the_readme_documents_every_command() {
         assert!(reference.contains(&format!("# `btfsynth {command}")), "docs/ have no section for {command}");
     }
     assert!(readme.contains("cargo test --release"), "the README's test command shares the demo's build");
+}
+
+/// Every environment variable btfsynth reads is parsed before any command starts: a bad
+/// value is one line naming it, exit 2, whichever command runs (most never reach the place
+/// where a given one is used).
+#[test]
+fn a_bad_environment_variable_is_refused_by_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let commands: [&[&str]; 6] = [
+        &["info", BUNNY],
+        &["synth", "analysis", "--plane", "8x8", "-o", "plane"],
+        &["export", "surface.ply", "-o", "surface.glb"],
+        &["convert", "stack", "-o", "converted"],
+        &["relight", "stack", "--view", "0,0", "--light", "0,0", "-o", "relit.png"],
+        &["remesh", BUNNY, "--vertices", "300", "-o", "remeshed.ply"],
+    ];
+    let mut bad = vec![("BTFSYNTH_MEMORY", "lots"), ("BTFSYNTH_DECODE_LIMIT", "6X")];
+    if cfg!(feature = "gpu") {
+        bad.extend([("BTFSYNTH_GPU_MEMORY", "-1G"), ("WGPU_BACKEND", "bogus")]);
+    }
+    for (name, value) in bad {
+        for args in commands {
+            let r = std::process::Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+                .args(args)
+                .current_dir(dir.path())
+                .env(name, value)
+                .output()
+                .unwrap();
+            assert_usage_error(&r, &format!("{name}='{value}'"));
+        }
+    }
+    assert!(entries(dir.path()).is_empty(), "nothing written");
 }

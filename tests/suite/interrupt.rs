@@ -184,3 +184,73 @@ fn an_interrupt_after_the_commit_says_what_was_written() {
     assert_eq!(entries(dir.path()), ["out.ply"], "the whole output, nothing else");
     assert!(std::fs::read(dir.path().join("out.ply")).unwrap().starts_with(b"ply\n"));
 }
+
+/// A child killed (and reaped) however the test ends.
+struct Reaped(std::process::Child);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Whether the process `pid` is blocked opening a FIFO: its main thread waits for the FIFO's
+/// other end (Linux names the wait `wait_for_partner`), or sits in `openat`.
+fn opening_a_fifo(pid: u32) -> bool {
+    let proc = |file: &str| std::fs::read_to_string(format!("/proc/{pid}/{file}")).unwrap_or_default();
+    let wchan = proc("wchan");
+    let openat = match std::env::consts::ARCH {
+        "x86_64" => "257",
+        "aarch64" => "56",
+        _ => "",
+    };
+    wchan.contains("partner")
+        || wchan.contains("fifo")
+        || (!openat.is_empty() && proc("syscall").split_whitespace().next() == Some(openat))
+}
+
+/// An output into a FIFO nobody reads blocks in the commit; Ctrl-C then still ends the run
+/// (the commit does not hold what the signal handler needs while it waits), with code 130 and
+/// no temporary left.
+#[test]
+fn an_interrupt_while_a_fifo_output_waits_for_a_reader_ends_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    assert!(Command::new("mkfifo").arg(dir.path().join("f")).status().unwrap().success());
+    let mut child = Reaped(
+        Command::new(env!("CARGO_BIN_EXE_btfsynth"))
+            .args(["-q", "remesh", BUNNY, "--vertices", "300", "-o", "f"])
+            .current_dir(dir.path())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let pid = child.0.id();
+    // Blocked once the temporary is written and the open of the FIFO waits (seen twice, so
+    // that a passing `openat` of another file does not count).
+    let blocked = || staged(dir.path()) && opening_a_fifo(pid);
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !(blocked() && {
+        std::thread::sleep(Duration::from_millis(50));
+        blocked()
+    }) {
+        assert!(child.0.try_wait().unwrap().is_none(), "remesh ended before it waited for a reader");
+        assert!(Instant::now() < deadline, "remesh never came to wait for a reader");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(Command::new("kill").args(["-INT", &pid.to_string()]).status().unwrap().success());
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(status) = child.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "Ctrl-C did not end a run waiting for a FIFO's reader");
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.0.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(status.code(), Some(130), "{stderr}");
+    assert_eq!(stderr.lines().last(), Some("error: interrupted; unfinished outputs were removed"));
+    assert_eq!(entries(dir.path()), ["f"], "the FIFO, and no temporary");
+}

@@ -177,3 +177,74 @@ fn remeshings_and_templates_are_read_back_by_runs_that_share_them() {
     let (plain, _) = run("plain", "2", false);
     assert!(plain == other_seed, "the cached remeshing gave other bytes than a fresh one");
 }
+
+/// `file` rewritten to hold `payload` under its own name's key, with a right checksum: a
+/// file of other inputs renamed into this run's place, which only its payload betrays.
+fn forge(file: &Path, payload_of: &Path) {
+    let (mine, theirs) = (std::fs::read(file).unwrap(), std::fs::read(payload_of).unwrap());
+    let payload = &theirs[28..theirs.len() - 8];
+    let mut forged = mine[..20].to_vec();
+    forged.extend((payload.len() as u64).to_le_bytes());
+    forged.extend(payload);
+    forged.extend(btfsynth::cache::Fnv1a::of(payload).to_le_bytes());
+    std::fs::write(file, forged).unwrap();
+}
+
+/// A cache file whose key and checksum are right but whose payload is another level's (a
+/// remeshing or templates of another size), a link to /dev/zero or a FIFO in a file's place:
+/// each is recomputed with a warning (never indexed past its end, read whole or written
+/// into), and the output is the bytes of a run without the cache. A cache directory inside an
+/// input, or at the output, is refused before any work.
+#[test]
+fn a_foreign_payload_or_a_special_file_in_the_cache_is_recomputed() {
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyze_gravel_crop(dir.path(), "gravel");
+    let (a, cache) = (analysis.to_str().unwrap(), dir.path().join("cache"));
+    let run = |name: &str, cache: Option<&Path>| {
+        let out = dir.path().join(format!("{name}.ply"));
+        let mut args =
+            vec!["synth", a, BUNNY, "--vertices", "1000", "--levels", "2", "-o", out.to_str().unwrap()];
+        if let Some(cache) = cache {
+            args.extend(["--cache", cache.to_str().unwrap()]);
+        }
+        let r = btfsynth(&args);
+        let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert!(r.status.success(), "{stderr}");
+        assert!(!stderr.contains("error") && !stderr.contains("panicked"), "{stderr}");
+        (std::fs::read(out).unwrap(), stderr)
+    };
+    let (plain, _) = run("plain", None);
+    run("cold", Some(&cache));
+    for kind in ["remesh-", "templates-"] {
+        // The finer level's file holds the coarser's payload, and the other way round.
+        let mut files: Vec<PathBuf> = cached(&cache, kind).into_iter().map(|(p, _)| p).collect();
+        files.sort_by_key(|p| std::fs::metadata(p).unwrap().len());
+        assert_eq!(files.len(), 2, "{kind}");
+        let saved = dir.path().join("saved");
+        std::fs::copy(&files[0], &saved).unwrap();
+        forge(&files[0], &files[1]);
+        forge(&files[1], &saved);
+    }
+    let (forged, stderr) = run("forged", Some(&cache));
+    assert_eq!(stderr.matches("computing it again").count(), 4, "a warning per file: {stderr}");
+    assert!(forged == plain, "a forged cache changed the output");
+
+    let stored: Vec<PathBuf> = cached(&cache, "").into_iter().map(|(p, _)| p).collect();
+    std::fs::remove_file(&stored[0]).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &stored[0]).unwrap();
+    std::fs::remove_file(&stored[1]).unwrap();
+    assert!(std::process::Command::new("mkfifo").arg(&stored[1]).status().unwrap().success());
+    let (special, stderr) = run("special", Some(&cache));
+    assert_eq!(stderr.matches("not a regular file").count(), 2, "{stderr}");
+    assert!(special == plain);
+    assert!(stored.iter().all(|p| std::fs::symlink_metadata(p).unwrap().is_file()), "replaced by files");
+
+    // Inside the input analysis, or where the output goes: refused, nothing written.
+    let out = dir.path().join("x.ply");
+    for cache in [analysis.join("cache"), out.clone()] {
+        let args = ["synth", a, BUNNY, "--vertices", "1000", "-o", out.to_str().unwrap()];
+        let r = btfsynth(&[&args[..], &["--cache", cache.to_str().unwrap()]].concat());
+        assert_usage_error(&r, "--cache");
+        assert!(!cache.exists() && !out.exists());
+    }
+}

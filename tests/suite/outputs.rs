@@ -173,9 +173,10 @@ fn is_fifo(path: &Path) -> bool {
 #[test]
 fn devices_and_fifos_are_written_into_or_refused_never_replaced() {
     let dir = tempfile::tempdir().unwrap();
-    // A file output goes into /dev/null (no --force needed: nothing is replaced).
+    // An existing device is an existing output: a file output goes into /dev/null with
+    // --force only.
     let r = btfsynth(&["-q", "remesh", BUNNY, "--vertices", "300", "-o", "/dev/null"]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_one_line_error(&r, "/dev/null already exists (pass --force");
     let r = btfsynth(&["-q", "remesh", BUNNY, "--vertices", "300", "-o", "/dev/null", "--force"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(
@@ -183,7 +184,7 @@ fn devices_and_fifos_are_written_into_or_refused_never_replaced() {
         "/dev/null is still a device"
     );
     // A full device is one error line.
-    let r = btfsynth(&["-q", "remesh", BUNNY, "--vertices", "300", "-o", "/dev/full"]);
+    let r = btfsynth(&["-q", "remesh", BUNNY, "--vertices", "300", "-o", "/dev/full", "--force"]);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{stderr}");
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
@@ -304,4 +305,34 @@ fn a_demo_replaces_only_an_earlier_demo() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data");
     let r = btfsynth(&["demo", "--data", data, "-o", &format!("{data}/demo-out")]);
     assert_one_line_error(&r, "lies inside the input");
+}
+
+/// Every image a `btf.json` names is an input of every command that reads the stack,
+/// wherever it lies (`"file": "../a.png"`, outside the manifest's folder, or beside the
+/// manifest): no output replaces one, `--force` or not.
+#[test]
+fn every_image_a_manifest_names_is_an_input_of_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("m");
+    std::fs::create_dir(&folder).unwrap();
+    let (outside, inside) = (dir.path().join("outside_a.png"), folder.join("b.png"));
+    common::write_png(&outside, 16, 16, common::pattern(1));
+    common::write_png(&inside, 16, 16, common::pattern(2));
+    let manifest = folder.join("btf.json");
+    let images = r#"{"images": [{"file": "../outside_a.png", "light": [0, 0], "view": [0, 0]},
+        {"file": "b.png", "light": [30, 0], "view": [0, 0]}]}"#;
+    std::fs::write(&manifest, images).unwrap();
+    let before = [std::fs::read(&outside).unwrap(), std::fs::read(&inside).unwrap()];
+    for stack in [&manifest, &folder] {
+        for out in [&outside, &inside] {
+            let light = ["--view", "0,0", "--light", "0,0"];
+            for command in [&["analyze"][..], &["convert"], &[&["relight"][..], &light[..]].concat()] {
+                let args = [command, &[s(stack), "-o", s(out), "--force"]].concat();
+                assert_one_line_error(&btfsynth(&args), "inputs are never replaced");
+            }
+        }
+    }
+    assert_eq!([std::fs::read(&outside).unwrap(), std::fs::read(&inside).unwrap()], before);
+    assert_eq!(entries(dir.path()), ["m", "outside_a.png"], "nothing left behind");
+    assert_eq!(entries(&folder), ["b.png", "btf.json"]);
 }

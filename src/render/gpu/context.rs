@@ -155,7 +155,7 @@ impl Gpu {
             }
             wgpu::Instance::new(descriptor)
         };
-        if wgpu::Backends::from_env().is_some() {
+        if crate::env::wgpu_backends()?.is_some() {
             return Gpu::new(&instance(None), None);
         }
         Gpu::new(&instance(Some(wgpu::Backends::PRIMARY)), None)

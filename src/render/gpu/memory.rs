@@ -64,10 +64,15 @@ impl Estimate {
     }
 }
 
+/// The limit `BTFSYNTH_GPU_MEMORY` sets, where it is set (inside, None: `unlimited`).
+pub fn limit_from_env() -> Result<Option<Option<(u64, String)>>> {
+    std::env::var(GPU_MEMORY_ENV).ok().map(|text| parse_size_env(GPU_MEMORY_ENV, &text)).transpose()
+}
+
 /// The GPU memory limit for an adapter of `kind` (see the module notes).
 pub fn limit(kind: wgpu::DeviceType) -> Result<Option<(u64, String)>> {
-    if let Ok(text) = std::env::var(GPU_MEMORY_ENV) {
-        return parse_size_env(GPU_MEMORY_ENV, &text);
+    if let Some(limit) = limit_from_env()? {
+        return Ok(limit);
     }
     let budget = memory_budget()?;
     if kind == wgpu::DeviceType::Cpu {

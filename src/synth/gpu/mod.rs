@@ -101,8 +101,11 @@ pub fn hardware_adapter() -> bool {
             pollster::block_on(instance.request_adapter(&options))
                 .is_ok_and(|a| a.get_info().device_type != wgpu::DeviceType::Cpu)
         };
-        if wgpu::Backends::from_env().is_some() {
-            return found(instance(None));
+        match crate::env::wgpu_backends() {
+            Ok(Some(_)) => return found(instance(None)),
+            // wgpu would try no backend: none is found (the command line refuses the value first).
+            Err(_) => return false,
+            Ok(None) => {}
         }
         found(instance(Some(wgpu::Backends::PRIMARY)))
     })

@@ -108,6 +108,9 @@ impl SurfaceGraph {
         if corners.is_empty() {
             return Err(Error::format(path, "every face has its corners at fewer than three points"));
         }
+        // A huge polygon, fan-triangulated: the mapping's time grows with the square of its
+        // corners (2,000: 45 s), as the vertex engine's remeshing does.
+        crate::mesh::load::check_fans_of(&corners, positions.len(), path)?;
         let incidences = edge_incidences(&corners);
         let joins = links(&incidences, corners.len());
         let flips = orientation(&joins).map_err(|(a, b)| {

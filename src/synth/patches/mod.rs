@@ -147,6 +147,86 @@ impl SolerParams {
     }
 }
 
+/// The most texels a mapped texture may cover on the surface (its area × texels per unit²):
+/// 2²⁶, as many as the largest plane (8192²). The mapping's time grows with it (the bundled
+/// bunny: 0.15 M texels at the default 4 × the sample's width across, 2.1 s; 9.3 M, 14.6 s),
+/// and so do its single faces' masks: 10⁶ texels per unit asked a terabyte for one.
+pub const MAX_SURFACE_TEXELS: f64 = (1u64 << 26) as f64;
+
+/// The largest coordinate a mapped mesh may have: the mapping squares lengths in single
+/// precision, which holds squares up to 3.4·10³⁸ (the bunny scaled by 10²⁰ came out as NaN
+/// texture coordinates; by 10¹⁹, whole).
+pub const MAX_COORDINATE: f32 = 1e18;
+
+/// Refuses, before any work, what the mapping of a `sample` (width, height, channels) onto
+/// `triangles` over `positions` (a file's, named `path` in errors) cannot do. The file's
+/// fault ([`Error::Format`]): a corner beyond [`MAX_COORDINATE`], or no face with an area at
+/// all. The scale's: more than [`MAX_SURFACE_TEXELS`] on the surface ([`Param::Scale`]), or
+/// a peak beyond the memory budget ([`Error::TooLarge`], see
+/// [`crate::analysis::memory::budget`]).
+pub fn check_size(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    path: &Path,
+    params: &SolerParams,
+    (width, height, channels): (usize, usize, usize),
+) -> Result<()> {
+    params.validate()?;
+    let (mut area, mut widest) = (0f64, 0f64);
+    for (f, t) in triangles.iter().enumerate() {
+        let corner = |k: usize| {
+            positions.get(t[k] as usize).copied().ok_or_else(|| {
+                Error::invalid(format!("{}: face {f} names vertex {}, past the mesh's", path.display(), t[k]))
+            })
+        };
+        let corners = [corner(0)?, corner(1)?, corner(2)?];
+        if let Some(far) =
+            corners.iter().map(|p| p.abs().max_element()).find(|&c| c.is_nan() || c > MAX_COORDINATE)
+        {
+            return Err(Error::format(
+                path,
+                format!(
+                    "face {f} has a corner {far:e} from the origin, beyond the {MAX_COORDINATE:e} whose square \
+                     single precision holds; scale the mesh down"
+                ),
+            ));
+        }
+        let [a, b, c] = corners.map(|p| p.as_dvec3());
+        area += (b - a).cross(c - a).length() / 2.0;
+        widest = widest.max(b.distance(a).max(c.distance(b)).max(a.distance(c)));
+    }
+    if area == 0.0 {
+        return Err(Error::format(path, "no face has an area (are all its vertices at one point?)"));
+    }
+    let scale = f64::from(params.texels_per_unit);
+    let texels = area * scale * scale;
+    if texels.is_nan() || texels > MAX_SURFACE_TEXELS {
+        let value = params.texels_per_unit;
+        return Err(Error::out_of_range(
+            Param::Scale,
+            if value < 1e6 { value.to_string() } else { format!("{value:e}") },
+            format!(
+                "puts {texels:.2e} texels on the surface of {}, more than 2^26 (8192²); lower it",
+                path.display()
+            ),
+        ));
+    }
+    // The sample's transforms at every rotation (complex halves of frames up to twice its
+    // side), and the largest mask: a cluster's spans at most the sample's diagonal, a single
+    // face's its own width, each with the band around it.
+    let (w, h, channels) = (width as f64, height as f64, channels as f64);
+    let frame = 2.0 * w.max(h);
+    let transforms = params.rotations as f64 * (channels + 1.0) * frame * (frame / 2.0 + 1.0) * 8.0;
+    let side = (w.hypot(h)).max(widest * scale) + 2.0 * f64::from(params.band) + 2.0;
+    let mask = side * side * (channels + 2.0) * 4.0;
+    let stage = crate::analysis::memory::Stage {
+        name: "the sample's rotated transforms and the largest mask".into(),
+        bytes: (transforms + mask) as u64,
+    };
+    let what = format!("mapping the sample at {} texels per unit", params.texels_per_unit);
+    crate::analysis::memory::check(path, &what, &[stage], crate::Remedy::LowerDensity)
+}
+
 /// What happened on one level of the hierarchy.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct LevelReport {
@@ -221,7 +301,7 @@ pub fn map_mesh(
     params: &SolerParams,
     progress: &dyn Progress,
 ) -> Result<PatchMapping> {
-    params.validate()?;
+    check_size(positions, triangles, path, params, (sample.width, sample.height, sample.channels))?;
     let mut seconds = [0.0; 4];
     let started = Instant::now();
     let graph = SurfaceGraph::new(positions, triangles, path)?;
@@ -269,6 +349,13 @@ pub fn map_mesh(
     let (mapping, levels) = mapper.run(&mut rng, progress)?;
     seconds[3] = started.elapsed().as_secs_f64();
     let (corner_uv, cluster) = on_file_faces(&graph, &mapping, triangles);
+    if corner_uv.iter().flatten().any(|uv| !uv.is_finite()) {
+        // check_size keeps the arithmetic finite; never write NaN coordinates regardless.
+        return Err(Error::internal(format!(
+            "{}: the mapping gave non-finite texture coordinates",
+            path.display()
+        )));
+    }
     let level = cluster
         .iter()
         .map(|&c| if c == NONE { 0 } else { hierarchy.clusters[c as usize].level.min(255) as u8 })

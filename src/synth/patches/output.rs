@@ -18,9 +18,7 @@
 
 use super::PatchMapping;
 use crate::mesh::textured::{load_textured, TexturedMesh};
-use crate::synth::surface_map::{
-    analysis_paths, comment_value, ANALYSIS_ABSOLUTE_KEY, ANALYSIS_FINGERPRINT_KEY, ANALYSIS_KEY,
-};
+use crate::synth::surface_map::{comment_value, input_comments};
 use crate::{Error, Result};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -82,24 +80,14 @@ pub fn write_uv_map(
 }
 
 fn comments(path: &Path, p: &Provenance) -> Vec<String> {
-    let (relative, absolute) = analysis_paths(p.analysis, path);
-    let mut comments = vec![UV_MAP_COMMENT.to_string(), format!("{ANALYSIS_KEY} {}", relative.display())];
-    if let Some(absolute) = absolute {
-        comments.push(format!("{ANALYSIS_ABSOLUTE_KEY} {}", absolute.display()));
-    }
-    if let Ok(manifest) = crate::analysis::store::read_manifest(p.analysis) {
-        comments.push(format!("{ANALYSIS_FINGERPRINT_KEY} {}", manifest.source.fingerprint));
-    }
-    let mesh_absolute = std::path::absolute(p.mesh).unwrap_or_else(|_| p.mesh.to_path_buf());
+    let mut comments = vec![UV_MAP_COMMENT.to_string()];
+    comments.extend(input_comments(p.analysis, p.mesh, path));
     comments.extend([
-        format!("mesh {}", p.mesh.display()),
-        format!("mesh_absolute {}", mesh_absolute.display()),
         format!("texel {}", p.texel),
         format!("sample {}x{}", p.sample.0, p.sample.1),
         format!("tileable {}", p.tileable),
         format!("params {}", p.params),
     ]);
-    comments.retain(|c| !c.contains(['\n', '\r']));
     comments
 }
 
