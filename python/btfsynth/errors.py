@@ -28,6 +28,10 @@ class FileError(Error, OSError):
     """A file that cannot be read or written, or whose contents are not what it claims to
     be. ``filename`` names it."""
 
+    def __str__(self):
+        # The library's line, not OSError's "[Errno None] None: 'filename'".
+        return str(self.args[0]) if self.args else ""
+
 
 class OutputError(FileError):
     """An output that exists (and overwriting was not allowed) or cannot go where asked."""

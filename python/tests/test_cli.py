@@ -1,0 +1,71 @@
+"""The Python path gives the CLI's results for the same inputs and seed: the same bytes for
+the analysis directory and the surface map, the same values for a plane."""
+
+from pathlib import Path
+
+import numpy as np
+
+import btfsynth
+from conftest import ANALYSIS, BUNNY, PHOTO, ROOT, read_png, to_srgb8
+
+
+def cli_flags(values):
+    return [x for k, v in values.items() for x in (f"--{k}", v)]
+
+
+def test_the_saved_analysis_is_the_cli_directory_byte_for_byte(cli, analysis, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "cli", *cli_flags(ANALYSIS))
+    analysis.save(scratch / "py")
+    ours, theirs = ROOT / scratch / "py", ROOT / scratch / "cli"
+    names = sorted(p.name for p in theirs.iterdir())
+    assert names == sorted(p.name for p in ours.iterdir())
+    assert "analysis.json" in names and "level0_textons.npy" in names
+    for name in names:
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+
+
+def test_a_plane_is_the_cli_plane(cli, analysis, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+    cli("synth", scratch / "a", "--plane", "96x64", "--seed", "3", "-o", scratch / "plane")
+    plane = btfsynth.synthesize_plane(analysis, (64, 96), seed=3)
+    out = ROOT / scratch / "plane"
+    assert np.array_equal(plane.uv, np.load(out / "uv.npy").astype(np.int32))
+    assert np.array_equal(plane.textons, np.load(out / "labels.npy"))
+    # result.png: the head-on image through uv, as 8-bit sRGB.
+    assert np.array_equal(to_srgb8(plane.image()), read_png(out / "result.png"))
+    # Another seed is another plane (the comparison can fail).
+    other = btfsynth.synthesize_plane(analysis, (64, 96), seed=4)
+    assert not np.array_equal(other.uv, plane.uv)
+
+
+def test_a_surface_map_is_the_cli_ply_byte_for_byte(cli, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+    flags = ["--vertices", "3000", "--seed", "1", "--preset", "tong2002"]
+    cli("synth", scratch / "a", BUNNY, *flags, "-o", scratch / "cli.ply")
+    loaded = btfsynth.Analysis.load(scratch / "a")
+    surface = btfsynth.synthesize_surface(loaded, BUNNY, vertices=3000, seed=1, preset="tong2002")
+    surface.save_ply(scratch / "py.ply")
+    theirs = (ROOT / scratch / "cli.ply").read_bytes()
+    assert (ROOT / scratch / "py.ply").read_bytes() == theirs
+    # From the analysis in memory: the same values (the header names no directory).
+    in_memory = btfsynth.synthesize_surface(btfsynth.analyze(PHOTO, **ANALYSIS), BUNNY, vertices=3000, seed=1, preset="tong2002")
+    assert np.array_equal(in_memory.uv, surface.uv) and np.array_equal(in_memory.textons, surface.textons)
+    assert np.array_equal(in_memory.vertices, surface.vertices)
+
+
+def test_the_glb_is_the_cli_export(cli, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+    cli("synth", scratch / "a", BUNNY, "--vertices", "3000", "-o", scratch / "s.ply")
+    cli("export", scratch / "s.ply", "-o", scratch / "cli.glb", "--size", "128")
+    surface = btfsynth.synthesize_surface(btfsynth.Analysis.load(scratch / "a"), BUNNY, vertices=3000)
+    glb = btfsynth.export_gltf(surface, scratch / "py.glb", size=128)
+    assert glb[:4] == b"glTF" and (ROOT / scratch / "py.glb").read_bytes() == glb
+    theirs = (ROOT / scratch / "cli.glb").read_bytes()
+    # The JSON chunk names the inputs (the CLI's surface file, ours "(in memory)"); the
+    # binary chunk — geometry, UVs and the baked texture — is the same.
+    assert binary_chunk(glb) == binary_chunk(theirs)
+
+
+def binary_chunk(glb):
+    json_length = int.from_bytes(glb[12:16], "little")
+    return glb[20 + json_length :]
