@@ -34,12 +34,7 @@ pub struct AnalysisData {
 /// Where an analysis lives: in memory beside its decoded stack, or in a directory.
 pub enum Origin {
     /// Analysed in this process from decoded images.
-    Memory {
-        analysed: Analysed,
-        btf: Arc<Btf>,
-        source: PathBuf,
-        crop: Option<Crop>,
-    },
+    Memory { analysed: Box<Analysed>, btf: Arc<Btf>, source: PathBuf, crop: Option<Crop> },
     /// Read from an analysis directory (`_temporary`: one this package unpacked, removed
     /// with the analysis).
     Directory { dir: PathBuf, _temporary: Option<tempfile::TempDir> },
@@ -50,7 +45,7 @@ impl AnalysisData {
         let levels = analysed.analysis.levels.len();
         let sample = Sample::from_analysis(&analysed.analysis, &btf, levels)?;
         let images = SampleImages::from_btf(&btf);
-        let origin = Origin::Memory { analysed, btf, source, crop };
+        let origin = Origin::Memory { analysed: Box::new(analysed), btf, source, crop };
         Ok(AnalysisData { sample, images, origin, material: OnceLock::new() })
     }
 
@@ -197,7 +192,9 @@ impl Analysis {
     /// The manifest `analysis.json` holds, as a dict.
     #[getter]
     fn manifest<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let text = serde_json::to_string(&self.data.sample.manifest).map_err(|e| Error::internal(e.to_string())).py(py)?;
+        let text = serde_json::to_string(&self.data.sample.manifest)
+            .map_err(|e| Error::internal(e.to_string()))
+            .py(py)?;
         py.import("json")?.call_method1("loads", (text,))
     }
 
@@ -220,7 +217,8 @@ impl Analysis {
     }
 
     fn __repr__(&self) -> String {
-        let sizes: Vec<String> = self.data.sample.levels.iter().map(|l| format!("{}x{}", l.width, l.height)).collect();
+        let sizes: Vec<String> =
+            self.data.sample.levels.iter().map(|l| format!("{}x{}", l.width, l.height)).collect();
         let from = match &self.data.origin {
             Origin::Memory { source, .. } => source.display().to_string(),
             Origin::Directory { dir, .. } => dir.display().to_string(),
@@ -231,9 +229,13 @@ impl Analysis {
 
 fn level_of<'a>(slf: &'a Bound<'_, Analysis>, level: usize) -> PyResult<&'a btfsynth::synth::SampleLevel> {
     let levels = &slf.get().data.sample.levels;
-    levels
-        .get(level)
-        .ok_or_else(|| value_error(slf.py(), "level", format!("{level} is not a level of this analysis (0 to {})", levels.len() - 1)))
+    levels.get(level).ok_or_else(|| {
+        value_error(
+            slf.py(),
+            "level",
+            format!("{level} is not a level of this analysis (0 to {})", levels.len() - 1),
+        )
+    })
 }
 
 /// An analysis from the files of its directory (what `Analysis.__reduce__` gives).
@@ -284,18 +286,34 @@ fn params(
         ("appearance_dims", appearance_dims, 1, 64),
     ] {
         if !(low..=high).contains(&value) {
-            let range = if high == usize::MAX { format!("at least {low}") } else { format!("from {low} to {high}") };
+            let range =
+                if high == usize::MAX { format!("at least {low}") } else { format!("from {low} to {high}") };
             return Err(value_error(py, name, format!("{value}: expected a whole number {range}")));
         }
     }
     if !(3..=63).contains(&neighborhood) || neighborhood % 2 == 0 {
-        return Err(value_error(py, "neighborhood", format!("{neighborhood}: expected an odd whole number from 3 to 63")));
+        return Err(value_error(
+            py,
+            "neighborhood",
+            format!("{neighborhood}: expected an odd whole number from 3 to 63"),
+        ));
     }
     let filters = match filters {
         Some(path) => FilterBank::from_file(&path).py(py)?,
         None => FilterBank::lm48(),
     };
-    Ok(AnalysisParams { textons, selected, levels, k, neighborhood, tileable, basis_rank: basis, appearance_dims, seed, filters })
+    Ok(AnalysisParams {
+        textons,
+        selected,
+        levels,
+        k,
+        neighborhood,
+        tileable,
+        basis_rank: basis,
+        appearance_dims,
+        seed,
+        filters,
+    })
 }
 
 /// A kNN list longer than the coarsest level has pixels is refused (as the CLI refuses it).
@@ -304,7 +322,8 @@ fn check_size(params: &AnalysisParams, (w, h): (usize, usize)) -> Result<()> {
     let sizes = btfsynth::analysis::pyramid::level_sizes(w, h, params.levels);
     let (cw, ch) = sizes[sizes.len() - 1];
     if params.k > cw * ch {
-        let message = format!("a kNN list holds at most the {cw}x{ch} = {} pixels of the coarsest level", cw * ch);
+        let message =
+            format!("a kNN list holds at most the {cw}x{ch} = {} pixels of the coarsest level", cw * ch);
         return Err(Error::out_of_range(btfsynth::Param::K, params.k, message));
     }
     Ok(())
@@ -334,7 +353,19 @@ pub fn analyze(
     crop: Option<(u32, u32, u32, u32)>,
     progress: Option<PyObject>,
 ) -> PyResult<Analysis> {
-    let params = params(py, textons, selected, levels, k, neighborhood, tileable, basis, appearance_dims, seed, filters)?;
+    let params = params(
+        py,
+        textons,
+        selected,
+        levels,
+        k,
+        neighborhood,
+        tileable,
+        basis,
+        appearance_dims,
+        seed,
+        filters,
+    )?;
     let crop = crop_of(py, crop)?;
     let data = if let Ok(stack) = stack.downcast::<Stack>() {
         if crop.is_some() {
@@ -344,12 +375,19 @@ pub fn analyze(
         let (btf, source, crop) = (s.btf.clone(), s.source.clone(), s.crop);
         long::run(py, progress.as_ref(), move |hook| {
             check_size(&params, (btf.width(), btf.height()))?;
-            let analysed = Analysed { analysis: btfsynth::analysis::pipeline::analyze(&btf, &params, hook)?, factors: None, basis: None };
+            let analysed = Analysed {
+                analysis: btfsynth::analysis::pipeline::analyze(&btf, &params, hook)?,
+                factors: None,
+                basis: None,
+            };
             AnalysisData::from_memory(analysed, btf, source, crop)
         })?
     } else {
         let path: PathBuf = stack.extract().map_err(|_| {
-            crate::errors::type_error("stack", format!("expected a Stack or a path, got {}", crate::arrays::type_name(stack)))
+            crate::errors::type_error(
+                "stack",
+                format!("expected a Stack or a path, got {}", crate::arrays::type_name(stack)),
+            )
         })?;
         long::run(py, progress.as_ref(), move |hook| analyze_path(&path, crop, &params, hook))?
     };
@@ -359,12 +397,19 @@ pub fn analyze(
 /// The CLI's path: factors for factorized files, decoded images where they fit, a streamed
 /// basis otherwise. An analysis that keeps its sample as factors is held in a temporary
 /// directory (the library's in-memory sample is decoded images).
-fn analyze_path(path: &Path, crop: Option<Crop>, params: &AnalysisParams, hook: &dyn btfsynth::progress::Progress) -> Result<AnalysisData> {
+fn analyze_path(
+    path: &Path,
+    crop: Option<Crop>,
+    params: &AnalysisParams,
+    hook: &dyn btfsynth::progress::Progress,
+) -> Result<AnalysisData> {
     let opened = input::open(path, crop, Mode::Auto, params, hook)?;
     check_size(params, opened.size())?;
     let analysed = input::run(&opened, params, hook)?;
     match opened {
-        Input::Images(btf) if analysed.factors.is_none() => AnalysisData::from_memory(analysed, Arc::new(btf), path.to_path_buf(), crop),
+        Input::Images(btf) if analysed.factors.is_none() => {
+            AnalysisData::from_memory(analysed, Arc::new(btf), path.to_path_buf(), crop)
+        }
         opened => {
             let temporary = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
             let dir = temporary.path().join("analysis");

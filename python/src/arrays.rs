@@ -30,10 +30,11 @@ pub fn checked<'py>(
     names: &[&str],
 ) -> PyResult<(Bound<'py, PyUntypedArray>, String)> {
     let py = obj.py();
-    let expected = || format!("a numpy array of {} with shape {}", dtypes.join(" or "), describe(shape, names));
-    let array = obj.downcast::<PyUntypedArray>().map_err(|_| {
-        type_error(name, format!("expected {}, got {}", expected(), type_name(obj)))
-    })?;
+    let expected =
+        || format!("a numpy array of {} with shape {}", dtypes.join(" or "), describe(shape, names));
+    let array = obj
+        .downcast::<PyUntypedArray>()
+        .map_err(|_| type_error(name, format!("expected {}, got {}", expected(), type_name(obj))))?;
     let dtype = array.dtype().to_string();
     if !dtypes.contains(&dtype.as_str()) {
         return Err(type_error(name, format!("expected {}, got dtype {dtype}", expected())));
@@ -69,13 +70,23 @@ pub fn floats(obj: &Bound<'_, PyAny>, name: &str, shape: Shape, names: &[&str]) 
         _ => values::<f64>(&array)?.into_iter().map(|v| v as f32).collect(),
     };
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(value_error(obj.py(), name, format!("expected finite values, got {} at flat index {i}", v[i])));
+        return Err(value_error(
+            obj.py(),
+            name,
+            format!("expected finite values, got {} at flat index {i}", v[i]),
+        ));
     }
     Ok(v)
 }
 
 /// An integer array (any width, signed or not) as u32 indices below `limit`.
-pub fn indices(obj: &Bound<'_, PyAny>, name: &str, shape: Shape, names: &[&str], limit: usize) -> PyResult<Vec<u32>> {
+pub fn indices(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    shape: Shape,
+    names: &[&str],
+    limit: usize,
+) -> PyResult<Vec<u32>> {
     let ints = ["int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64"];
     let (array, _) = checked(obj, name, &ints, shape, names)?;
     let wide: Vec<i64> = array.call_method1("astype", ("int64",))?.downcast::<PyArrayDyn<i64>>()?.to_vec()?;
@@ -93,7 +104,11 @@ pub fn indices(obj: &Bound<'_, PyAny>, name: &str, shape: Shape, names: &[&str],
 ///
 /// `data` must live inside `owner` and never change while `owner` lives: every caller passes
 /// data held by an immutable pyclass (or an `Arc` it holds).
-pub fn view<'py, T: Element>(owner: &Bound<'py, PyAny>, data: &[T], shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+pub fn view<'py, T: Element>(
+    owner: &Bound<'py, PyAny>,
+    data: &[T],
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
     let view = ArrayView::from_shape(IxDyn(shape), data)
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(format!("internal error: {e}")))?;
     // SAFETY: `owner` keeps `data` alive and unchanged (see above); the array is made
@@ -104,7 +119,10 @@ pub fn view<'py, T: Element>(owner: &Bound<'py, PyAny>, data: &[T], shape: &[usi
 }
 
 /// An owned array handed to numpy (its buffer moves, no copy).
-pub fn owned<'py, T: Element, D: Dimension>(py: Python<'py>, array: numpy::ndarray::Array<T, D>) -> Bound<'py, PyArrayDyn<T>> {
+pub fn owned<'py, T: Element, D: Dimension>(
+    py: Python<'py>,
+    array: numpy::ndarray::Array<T, D>,
+) -> Bound<'py, PyArrayDyn<T>> {
     let dynamic: ArrayD<T> = array.into_dyn();
     PyArray::from_owned_array(py, dynamic)
 }

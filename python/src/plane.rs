@@ -29,7 +29,11 @@ impl Choices<'_> {
     /// passes, whose results are the same bytes).
     pub fn session(&self, py: Python<'_>, data: &AnalysisData) -> PyResult<SynthSession> {
         if !(3..=63).contains(&self.neighborhood) || self.neighborhood % 2 == 0 {
-            return Err(value_error(py, "neighborhood", format!("{}: expected an odd whole number from 3 to 63", self.neighborhood)));
+            return Err(value_error(
+                py,
+                "neighborhood",
+                format!("{}: expected an odd whole number from 3 to 63", self.neighborhood),
+            ));
         }
         let preset = match &self.recipe {
             Some(recipe) => {
@@ -41,7 +45,9 @@ impl Choices<'_> {
         let search = match self.search {
             "kcoherence" => SearchChoice::KCoherence,
             "full" => SearchChoice::Full,
-            other => return Err(value_error(py, "search", format!("'{other}': expected 'kcoherence' or 'full'"))),
+            other => {
+                return Err(value_error(py, "search", format!("'{other}': expected 'kcoherence' or 'full'")))
+            }
         };
         let mut builder = SynthSessionBuilder::new()
             .preset(preset)
@@ -63,12 +69,19 @@ impl Choices<'_> {
 
 /// The sample `session` runs on: the analysis' own (no copy) unless it uses fewer levels or
 /// matches colours.
-pub fn with_sample<T>(data: &AnalysisData, session: &SynthSession, run: impl FnOnce(&Sample) -> Result<T>) -> Result<T> {
+pub fn with_sample<T>(
+    data: &AnalysisData,
+    session: &SynthSession,
+    run: impl FnOnce(&Sample) -> Result<T>,
+) -> Result<T> {
     let colours = session.params().preset.uses(MetricKind::Colour);
     if session.levels() == data.sample.levels.len() && !colours {
         return run(&data.sample);
     }
-    let mut sample = Sample { levels: data.sample.levels[..session.levels()].to_vec(), manifest: data.sample.manifest.clone() };
+    let mut sample = Sample {
+        levels: data.sample.levels[..session.levels()].to_vec(),
+        manifest: data.sample.manifest.clone(),
+    };
     if colours {
         sample.set_colours(&data.images)?;
     }
@@ -117,7 +130,12 @@ impl Plane {
     /// the CLI's `result.png` shows (view and light nearest the normal); with one, the other
     /// is the normal, as the CLI's `--view`/`--light`.
     #[pyo3(signature = (view=None, light=None))]
-    fn image<'py>(&self, py: Python<'py>, view: Option<(f32, f32)>, light: Option<(f32, f32)>) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    fn image<'py>(
+        &self,
+        py: Python<'py>,
+        view: Option<(f32, f32)>,
+        light: Option<(f32, f32)>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         let images = &self.analysis.images;
         let probe = match (view, light) {
             (None, None) => images.default_probes().remove(0),
@@ -132,9 +150,11 @@ impl Plane {
             .state
             .uv
             .iter()
-            .flat_map(|&[x, y]| images.rgb(probe.image, x.clamp(0, w - 1) as usize, y.clamp(0, h - 1) as usize))
+            .flat_map(|&[x, y]| {
+                images.rgb(probe.image, x.clamp(0, w - 1) as usize, y.clamp(0, h - 1) as usize)
+            })
             .collect();
-        Ok(numpy::PyArray1::from_vec(py, rgb).reshape(vec![self.result.height, self.result.width, 3])?)
+        numpy::PyArray1::from_vec(py, rgb).reshape(vec![self.result.height, self.result.width, 3])
     }
 
     /// Per level (coarsest first): vertices, passes, seconds, mean candidates and mean best
@@ -189,7 +209,9 @@ pub fn synthesize_plane<'py>(
     let provenance = session.provenance();
     let shared = data.clone();
     let mut result = long::run(py, progress.as_ref(), move |hook| {
-        with_sample(&shared, &session, |sample| plane(sample, (width, height), tileable, session.params(), hook))
+        with_sample(&shared, &session, |sample| {
+            plane(sample, (width, height), tileable, session.params(), hook)
+        })
     })?;
     // As a result file records them: equal inputs, equal values.
     for r in &mut result.reports {

@@ -49,16 +49,22 @@ impl Stack {
         view: &Bound<'_, PyAny>,
         light: &Bound<'_, PyAny>,
     ) -> PyResult<Stack> {
-        let (array, _) = checked(images, "images", &["float32"], &[None, None, None, Some(3)], &["N", "H", "W", "3"])?;
+        let (array, _) =
+            checked(images, "images", &["float32"], &[None, None, None, Some(3)], &["N", "H", "W", "3"])?;
         let shape = array.shape().to_vec();
         let pixels = values::<f32>(&array)?;
         if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
-            return Err(value_error(py, "images", format!("expected finite values ≥ 0 (linear RGB), got {} at flat index {i}", pixels[i])));
+            return Err(value_error(
+                py,
+                "images",
+                format!("expected finite values ≥ 0 (linear RGB), got {} at flat index {i}", pixels[i]),
+            ));
         }
         let n = shape[0];
         let views = directions(py, view, "view", n)?;
         let lights = directions(py, light, "light", n)?;
-        let pairs = views.into_iter().zip(lights).map(|(view, light)| DirectionPair { light, view }).collect();
+        let pairs =
+            views.into_iter().zip(lights).map(|(view, light)| DirectionPair { light, view }).collect();
         let pixels = pixels.into_iter().map(f16::from_f32).collect();
         let btf = Btf::new(shape[2], shape[1], pairs, pixels).py(py)?;
         Ok(Stack { btf: Arc::new(btf), source: IN_MEMORY.into(), crop: None })
@@ -73,12 +79,17 @@ impl Stack {
         let (array, dtype) = checked(image, "image", &dtypes, &[None, None, Some(3)], &["H", "W", "3"])?;
         let shape = array.shape().to_vec();
         let pixels: Vec<f16> = if dtype == "uint8" {
-            let lut: Vec<f16> = (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
+            let lut: Vec<f16> =
+                (0..=255u8).map(|v| f16::from_f32(srgb_to_linear(v as f32 / 255.0))).collect();
             values::<u8>(&array)?.into_iter().map(|v| lut[v as usize]).collect()
         } else {
             let linear = floats(image, "image", &[None, None, Some(3)], &["H", "W", "3"])?;
             if let Some(i) = linear.iter().position(|v| *v < 0.0) {
-                return Err(value_error(py, "image", format!("expected linear RGB ≥ 0, got {} at flat index {i}", linear[i])));
+                return Err(value_error(
+                    py,
+                    "image",
+                    format!("expected linear RGB ≥ 0, got {} at flat index {i}", linear[i]),
+                ));
             }
             linear.into_iter().map(f16::from_f32).collect()
         };
@@ -92,7 +103,12 @@ impl Stack {
     /// large to decode is refused: `analyze(path)` analyses those from their factors.
     #[staticmethod]
     #[pyo3(signature = (path, crop=None, progress=None))]
-    fn open(py: Python<'_>, path: PathBuf, crop: Option<(u32, u32, u32, u32)>, progress: Option<PyObject>) -> PyResult<Stack> {
+    fn open(
+        py: Python<'_>,
+        path: PathBuf,
+        crop: Option<(u32, u32, u32, u32)>,
+        progress: Option<PyObject>,
+    ) -> PyResult<Stack> {
         let crop = crop_of(py, crop)?;
         let source = path.clone();
         let btf = long::run(py, progress.as_ref(), move |hook| {
@@ -125,7 +141,7 @@ impl Stack {
     fn images<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         let b = &self.btf;
         let data: Vec<f32> = b.pixels().iter().map(|v| v.to_f32()).collect();
-        Ok(numpy::PyArray1::from_vec(py, data).reshape(vec![b.len(), b.height(), b.width(), 3])?)
+        numpy::PyArray1::from_vec(py, data).reshape(vec![b.len(), b.height(), b.width(), 3])
     }
 
     /// View directions `[N, 2]` (θ, φ in degrees).
@@ -141,21 +157,33 @@ impl Stack {
     }
 
     fn __repr__(&self) -> String {
-        format!("Stack({} images of {}x{}, from {})", self.btf.len(), self.btf.width(), self.btf.height(), self.source.display())
+        format!(
+            "Stack({} images of {}x{}, from {})",
+            self.btf.len(),
+            self.btf.width(),
+            self.btf.height(),
+            self.source.display()
+        )
     }
 }
 
 impl Stack {
-    fn angles<'py>(&self, py: Python<'py>, pick: impl Fn(&DirectionPair) -> Direction) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    fn angles<'py>(
+        &self,
+        py: Python<'py>,
+        pick: impl Fn(&DirectionPair) -> Direction,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         let data: Vec<f32> = self.btf.pairs().iter().flat_map(|p| [pick(p).theta, pick(p).phi]).collect();
-        Ok(numpy::PyArray1::from_vec(py, data).reshape(vec![self.btf.len(), 2])?)
+        numpy::PyArray1::from_vec(py, data).reshape(vec![self.btf.len(), 2])
     }
 }
 
 /// `(x, y, w, h)` as a crop with a non-empty size.
 pub fn crop_of(py: Python<'_>, crop: Option<(u32, u32, u32, u32)>) -> PyResult<Option<Crop>> {
     match crop {
-        Some((_, _, 0, _) | (_, _, _, 0)) => Err(value_error(py, "crop", "width and height must be at least 1")),
+        Some((_, _, 0, _) | (_, _, _, 0)) => {
+            Err(value_error(py, "crop", "width and height must be at least 1"))
+        }
         Some((x, y, width, height)) => Ok(Some(Crop { x, y, width, height })),
         None => Ok(None),
     }

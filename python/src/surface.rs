@@ -16,7 +16,10 @@ use btfsynth::render::ambient::AmbientCache;
 use btfsynth::render::cpu::{render as render_shot, valid_spp, RenderOptions};
 use btfsynth::render::tracer::Tracer;
 use btfsynth::render::{Environment, Mode, Scene, ShotPlan};
-use btfsynth::synth::surface_map::{build_pyramid, synthesize_surface as synthesize, write_surface_ply, Density, MeshLevel, SurfaceMap, MAX_VERTICES};
+use btfsynth::synth::surface_map::{
+    build_pyramid, synthesize_surface as synthesize, write_surface_ply, Density, MeshLevel, SurfaceMap,
+    MAX_VERTICES,
+};
 use btfsynth::synth::{LevelReport, State};
 use btfsynth::{Error, Result};
 use glam::Vec3;
@@ -47,9 +50,11 @@ impl Original {
     fn textured(&self) -> Result<TexturedMesh> {
         match self {
             Original::File(path) => load_textured(path),
-            Original::Arrays(mesh) => {
-                Ok(TexturedMesh { positions: mesh.positions().to_vec(), triangles: mesh.triangles().to_vec(), uvs: None })
-            }
+            Original::Arrays(mesh) => Ok(TexturedMesh {
+                positions: mesh.positions().to_vec(),
+                triangles: mesh.triangles().to_vec(),
+                uvs: None,
+            }),
         }
     }
 }
@@ -143,7 +148,12 @@ impl Surface {
     }
 
     fn __repr__(&self) -> String {
-        format!("Surface({} vertices, {} faces, preset {})", self.level.mesh.vertex_count(), self.level.mesh.face_count(), self.provenance["preset"])
+        format!(
+            "Surface({} vertices, {} faces, preset {})",
+            self.level.mesh.vertex_count(),
+            self.level.mesh.face_count(),
+            self.provenance["preset"]
+        )
     }
 }
 
@@ -168,7 +178,10 @@ fn original(py: Python<'_>, mesh: &Bound<'_, PyAny>, faces: Option<&Bound<'_, Py
         Ok(path) => Ok(Original::File(path)),
         Err(_) => Err(crate::errors::type_error(
             "mesh",
-            format!("expected a path, or vertex positions [V, 3] with faces=[F, 3]; got {}", crate::arrays::type_name(mesh)),
+            format!(
+                "expected a path, or vertex positions [V, 3] with faces=[F, 3]; got {}",
+                crate::arrays::type_name(mesh)
+            ),
         )),
     }
 }
@@ -226,7 +239,9 @@ pub fn synthesize_surface<'py>(
         (None, None, None) => Density::TexelsAcross(4.0 * data.sample.manifest.width as f32),
         (None, Some(_), None) => return Err(value_error(py, "texels_across", "expected a positive number")),
         (None, None, Some(_)) => return Err(value_error(py, "scale", "expected a positive number")),
-        _ => return Err(value_error(py, "vertices", "give at most one of vertices, texels_across and scale")),
+        _ => {
+            return Err(value_error(py, "vertices", "give at most one of vertices, texels_across and scale"))
+        }
     };
     let orientation = Orientation::parse(orient).map_err(|e| value_error(py, "orient", e))?;
     let choices = Choices { preset, recipe, seed, levels, k, neighborhood, search };
@@ -256,9 +271,11 @@ pub fn synthesize_surface<'py>(
         };
         check_vertices(what.0, what.1, levels, session.params().neighborhood)?;
         let pyramid = build_pyramid(mesh, density, levels, &orientation, session.params(), hook)?;
-        let (state, mut reports) = with_sample(&shared, &session, |sample| synthesize(&pyramid, sample, session.params(), hook))?;
+        let (state, mut reports) =
+            with_sample(&shared, &session, |sample| synthesize(&pyramid, sample, session.params(), hook))?;
         reports.iter_mut().for_each(|r| r.device = None);
-        let level = pyramid.levels.into_iter().next().ok_or_else(|| Error::internal("a pyramid without levels"))?;
+        let level =
+            pyramid.levels.into_iter().next().ok_or_else(|| Error::internal("a pyramid without levels"))?;
         let scene = Scene::from_surface_map(SurfaceMap::from_synthesis(&level, &state));
         Ok((level, state, reports, Arc::new(scene)))
     })?;
@@ -332,7 +349,8 @@ pub fn render<'py>(
         let tracer = Tracer::new(&scene.mesh);
         let shot = plan.shots(scene.mesh.bounds())[0];
         let mut cache = environment.map(|e| AmbientCache::new(&scene, &material, e, shadows));
-        let ambient = cache.as_mut().map(|a| a.for_camera((&scene, &material), &shot.camera, Some(&tracer)).0);
+        let ambient =
+            cache.as_mut().map(|a| a.for_camera((&scene, &material), &shot.camera, Some(&tracer)).0);
         Ok(render_shot(&scene, &material, &tracer, &shot, options, ambient))
     })?;
     let array = Array3::from_shape_vec((frame.height, frame.width, 4), frame.rgba)
@@ -361,15 +379,25 @@ pub fn export_gltf<'py>(
 ) -> PyResult<Bound<'py, PyBytes>> {
     if let Some(p) = &path {
         if p.extension().is_none_or(|e| !e.eq_ignore_ascii_case("glb")) {
-            return Err(value_error(py, "path", format!("{}: the package writes binary glTF, a .glb file", p.display())));
+            return Err(value_error(
+                py,
+                "path",
+                format!("{}: the package writes binary glTF, a .glb file", p.display()),
+            ));
         }
     }
     if let Some(size) = size.filter(|s| !btfsynth::export::SIZE_RANGE.contains(s)) {
         let range = &btfsynth::export::SIZE_RANGE;
-        return Err(value_error(py, "size", format!("{size}: the atlas side must be from {} to {} texels", range.start(), range.end())));
+        return Err(value_error(
+            py,
+            "size",
+            format!("{size}: the atlas side must be from {} to {} texels", range.start(), range.end()),
+        ));
     }
     let light = match light {
-        Some((theta, phi)) => Some(btfsynth::btf::Direction::new(theta, phi).map_err(|e| value_error(py, "light", e))?),
+        Some((theta, phi)) => {
+            Some(btfsynth::btf::Direction::new(theta, phi).map_err(|e| value_error(py, "light", e))?)
+        }
         None => None,
     };
     let s = surface.get();
@@ -387,8 +415,15 @@ pub fn export_gltf<'py>(
         let (surface_name, mesh_name) = (PathBuf::from(IN_MEMORY), original.name());
         let analysis_name = analysis.dir().map_or_else(|| PathBuf::from(IN_MEMORY), Path::to_path_buf);
         let names = SourceNames { surface: &surface_name, analysis: &analysis_name, mesh: &mesh_name };
-        let source = ExportSource { scene: &scene, material: &material, maps: &[], mesh: mesh.as_ref(), names };
-        let options = ExportOptions { size, light, vertex_colours: vertex_colors, overwrite, ..ExportOptions::default() };
+        let source =
+            ExportSource { scene: &scene, material: &material, maps: &[], mesh: mesh.as_ref(), names };
+        let options = ExportOptions {
+            size,
+            light,
+            vertex_colours: vertex_colors,
+            overwrite,
+            ..ExportOptions::default()
+        };
         let glb = bake_export(&name, &source, &options, hook)?.document.to_glb();
         if let Some(p) = &path {
             write_file_atomic(p, &glb)?;

@@ -92,7 +92,8 @@ impl SampleImages {
     /// The images and directions of `btf`, held in memory: what [`SampleImages::open`] reads
     /// back from the directory an analysis of `btf` was written to (one copy of the pixels).
     pub fn from_btf(btf: &crate::btf::Btf) -> Self {
-        let directions = btf.pairs().iter().map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
+        let directions =
+            btf.pairs().iter().map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
         let values = Values::Pixels(btf.pixels().to_vec());
         SampleImages { width: btf.width(), height: btf.height(), values, directions }
     }
