@@ -22,10 +22,10 @@ def jobs(shared: Path):
         materials,
         meshes,
         seeds=[0, 1],
-        analysis={"crop": (0, 0, 128, 128)},
-        vertices=10_000,
-        render_size=256,
-        export_size=256,
+        analysis={"crop": (0, 0, 128, 128), "textons": 100, "levels": 2},
+        vertices=5_000,
+        render_size=128,
+        export_size=128,
     )
 
 

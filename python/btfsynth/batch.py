@@ -235,9 +235,13 @@ def run(
 
     started = time.perf_counter()
     out, pending, report = _plan(jobs, out_dir)
+    if not pending:  # everything finished before: no cluster to start
+        report.seconds = time.perf_counter() - started
+        _write_report(out, report)
+        return report
     owned = []
     try:
-        if pending and client is None:
+        if client is None:
             if address is not None:
                 client = Client(address)
                 owned.append(client)

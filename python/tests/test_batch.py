@@ -40,6 +40,9 @@ def test_a_failing_job_is_reported_and_a_rerun_skips_the_finished(scratch):
     second = batch.run(jobs, out, workers=2)
     assert sorted(second.skipped) == sorted(first.done) and not second.done
     assert set(second.failed) == set(first.failed) and second.analyses == 2
+    # Only finished jobs: nothing to run, no cluster started.
+    third = batch.run(jobs[:2], out)
+    assert sorted(third.skipped) == sorted(first.done) and not third.done and not third.failed
 
 
 def test_the_sequential_run_writes_the_same_files(scratch):
