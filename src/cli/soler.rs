@@ -6,8 +6,9 @@ use super::usage;
 use anyhow::{Context, Result};
 use btfsynth::analysis::images::SampleImages;
 use btfsynth::fsutil::{commit_all, Staged};
-use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
+use btfsynth::synth::patches::fit::ColourSpace;
 use btfsynth::synth::patches::output::{write_uv_map, Provenance};
+use btfsynth::synth::patches::prepare::{fit_sample, recorded_params, texels_per_unit, Matching};
 use btfsynth::synth::patches::{map_mesh, SolerParams};
 use std::path::Path;
 use std::time::Instant;
@@ -101,41 +102,32 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     let manifest = btfsynth::analysis::store::read_manifest(common.analysis)?;
     let tileable = manifest.params.tileable;
     let images = SampleImages::open(common.analysis)?;
-    // The sample as seen head-on (a photograph's only image).
-    let shown = images.default_probes()[0].image;
     let (w, h) = (images.width, images.height);
-    let colour = match args.colour_space {
-        ColourArg::Lab | ColourArg::Appearance => ColourSpace::Lab,
-        ColourArg::Hsv => ColourSpace::Hsv,
-        ColourArg::Rgb => ColourSpace::Rgb,
+    let matching = match args.colour_space {
+        ColourArg::Lab => Matching::Colour(ColourSpace::Lab),
+        ColourArg::Hsv => Matching::Colour(ColourSpace::Hsv),
+        ColourArg::Rgb => Matching::Colour(ColourSpace::Rgb),
+        ColourArg::Appearance => Matching::Appearance,
     };
-    let sample = match args.colour_space {
-        ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
-        _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
+    // The levels are read only for their appearance vectors.
+    let finest = match matching {
+        Matching::Appearance => Some(btfsynth::synth::Sample::open(common.analysis, 1)?),
+        Matching::Colour(_) => None,
     };
+    let appearance = finest.as_ref().and_then(|s| s.levels[0].appearance.as_ref());
+    let (sample, shown) =
+        fit_sample(&images, appearance, matching, tileable, common.analysis).map_err(super::usage_of)?;
     let mesh = btfsynth::mesh::textured::load_textured(common.mesh)?;
-    let texels_per_unit = match (common.scale, common.texels_across) {
-        (Some(s), _) => s,
-        (None, across) => {
-            let (lo, hi) = btfsynth::mesh::bounds_of(&mesh.positions);
-            let side = (hi - lo).max_element();
-            // NaN fails too: a mesh without finite extent.
-            if side.is_nan() || side <= 0.0 {
-                return Err(usage(format!(
-                    "{}: the mesh has no extent to scale a texture to",
-                    common.mesh.display()
-                )));
-            }
-            across.unwrap_or(4.0 * w as f32) / side
-        }
-    };
+    let texels_per_unit =
+        texels_per_unit(&mesh.positions, common.scale, common.texels_across, w, common.mesh)
+            .map_err(super::usage_of)?;
     let params = SolerParams {
         texels_per_unit,
         rotations: args.rotations,
         band: args.band,
         max_flat_error: args.max_distortion,
         max_fit_error: args.fit_threshold,
-        colour,
+        colour: matching.colour_space(),
         relax: !args.no_relax,
         move_borders: !args.keep_borders,
         matching: true,
@@ -153,14 +145,7 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         )));
     }
     let result = map_mesh(&mesh.positions, &mesh.triangles, common.mesh, sample, &params, bars)?;
-    let colour_name = format!("{:?}", args.colour_space).to_lowercase();
-    let mut params_json = serde_json::json!({
-        "method": "soler2002", "texels_per_unit": texels_per_unit, "rotations": params.rotations,
-        "band": params.band, "max_distortion": params.max_flat_error, "fit_threshold": params.max_fit_error,
-        "colour_space": colour_name, "relax": params.relax,
-        "move_borders": params.move_borders, "seed": params.seed, "image": shown,
-        "first_face": params.first_face, "orientation": params.orientation,
-    });
+    let mut params_json = recorded_params(&params, matching, shown);
     let provenance = Provenance {
         analysis: common.analysis,
         mesh: common.mesh,
@@ -221,21 +206,4 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         eprintln!("wrote {}", report.display());
     }
     Ok(())
-}
-
-/// The analysis' finest appearance vectors (at most 8 dimensions) as the fitting image.
-fn appearance_image(analysis: &Path, tileable: bool) -> Result<FitImage> {
-    let sample = btfsynth::synth::Sample::open(analysis, 1)?;
-    let level = &sample.levels[0];
-    let map = level.appearance.as_ref().ok_or_else(|| {
-        usage(format!("{}: this analysis has no appearance vectors (re-run analyze)", analysis.display()))
-    })?;
-    let dims = map.dims.min(8);
-    let mut values = Vec::with_capacity(level.width * level.height * dims);
-    for y in 0..level.height as i64 {
-        for x in 0..level.width as i64 {
-            values.extend_from_slice(&map.at(x, y)[..dims]);
-        }
-    }
-    Ok(FitImage::new(level.width, level.height, dims, values, tileable)?)
 }
