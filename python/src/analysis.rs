@@ -262,28 +262,17 @@ pub fn analysis_from_files(py: Python<'_>, files: &Bound<'_, PyDict>) -> PyResul
     Ok(Analysis { data: Arc::new(data) })
 }
 
-/// The analysis parameters as the CLI's `analyze` flags set them, checked.
-#[allow(clippy::too_many_arguments)]
-fn params(
-    py: Python<'_>,
-    textons: usize,
-    selected: usize,
-    levels: usize,
-    k: usize,
-    neighborhood: usize,
-    tileable: bool,
-    basis: usize,
-    appearance_dims: usize,
-    seed: u64,
-    filters: Option<PathBuf>,
-) -> PyResult<AnalysisParams> {
+/// The analysis parameters as the CLI's `analyze` flags set them, checked: a parameter
+/// out of range is a `ValueError` naming it.
+fn check(py: Python<'_>, params: &AnalysisParams) -> PyResult<()> {
+    let p = params;
     for (name, value, low, high) in [
-        ("textons", textons, 1, usize::MAX),
-        ("selected", selected, 1, usize::MAX),
-        ("levels", levels, 1, usize::MAX),
-        ("k", k, 1, 256),
-        ("basis", basis, 1, 1024),
-        ("appearance_dims", appearance_dims, 1, 64),
+        ("textons", p.textons, 1, usize::MAX),
+        ("selected", p.selected, 1, usize::MAX),
+        ("levels", p.levels, 1, usize::MAX),
+        ("k", p.k, 1, 256),
+        ("basis", p.basis_rank, 1, 1024),
+        ("appearance_dims", p.appearance_dims, 1, 64),
     ] {
         if !(low..=high).contains(&value) {
             let range =
@@ -291,29 +280,14 @@ fn params(
             return Err(value_error(py, name, format!("{value}: expected a whole number {range}")));
         }
     }
-    if !(3..=63).contains(&neighborhood) || neighborhood % 2 == 0 {
+    if !(3..=63).contains(&p.neighborhood) || p.neighborhood % 2 == 0 {
         return Err(value_error(
             py,
             "neighborhood",
-            format!("{neighborhood}: expected an odd whole number from 3 to 63"),
+            format!("{}: expected an odd whole number from 3 to 63", p.neighborhood),
         ));
     }
-    let filters = match filters {
-        Some(path) => FilterBank::from_file(&path).py(py)?,
-        None => FilterBank::lm48(),
-    };
-    Ok(AnalysisParams {
-        textons,
-        selected,
-        levels,
-        k,
-        neighborhood,
-        tileable,
-        basis_rank: basis,
-        appearance_dims,
-        seed,
-        filters,
-    })
+    Ok(())
 }
 
 /// A kNN list longer than the coarsest level has pixels is refused (as the CLI refuses it).
@@ -329,13 +303,17 @@ fn check_size(params: &AnalysisParams, (w, h): (usize, usize)) -> Result<()> {
     Ok(())
 }
 
+// `appearance_dims`' default below is the library's, written as a number so that help()
+// shows it.
+const _: () = assert!(btfsynth::analysis::appearance::DEFAULT_DIMS == 16);
+
 /// Analyses a stack (a `Stack`, or a path as the CLI's `analyze` reads it) into an
 /// `Analysis`: the same computation, and the same bytes once saved, as
 /// `btfsynth analyze STACK -o DIR` with the same values. Keyword arguments are the CLI's flags
 /// with their defaults; `progress` is a callable `progress(done, total, stage)`.
 #[pyfunction]
 #[pyo3(signature = (stack, *, textons=400, selected=400, levels=3, k=11, neighborhood=5, tileable=false,
-    basis=32, appearance_dims=btfsynth::analysis::appearance::DEFAULT_DIMS, seed=0, filters=None, crop=None, progress=None))]
+    basis=32, appearance_dims=16, seed=0, filters=None, crop=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn analyze(
     py: Python<'_>,
@@ -353,19 +331,24 @@ pub fn analyze(
     crop: Option<(u32, u32, u32, u32)>,
     progress: Option<PyObject>,
 ) -> PyResult<Analysis> {
-    let params = params(
-        py,
+    let filters = match filters {
+        Some(path) => FilterBank::from_file(&path).py(py)?,
+        None => FilterBank::lm48(),
+    };
+    let basis_rank = basis;
+    let params = AnalysisParams {
         textons,
         selected,
         levels,
         k,
         neighborhood,
         tileable,
-        basis,
+        basis_rank,
         appearance_dims,
         seed,
         filters,
-    )?;
+    };
+    check(py, &params)?;
     let crop = crop_of(py, crop)?;
     let data = if let Ok(stack) = stack.downcast::<Stack>() {
         if crop.is_some() {

@@ -5,6 +5,7 @@ use crate::analysis::{Analysis, AnalysisData};
 use crate::arrays::{floats, indices, owned, view};
 use crate::errors::{value_error, IntoPy};
 use crate::long;
+use crate::patches::PatchMap;
 use crate::plane::{json, with_sample, Choices};
 use crate::stack::IN_MEMORY;
 use btfsynth::export::{bake_export, ExportOptions, ExportSource, SourceNames};
@@ -15,7 +16,7 @@ use btfsynth::mesh::Mesh;
 use btfsynth::render::ambient::AmbientCache;
 use btfsynth::render::cpu::{render as render_shot, valid_spp, RenderOptions};
 use btfsynth::render::tracer::Tracer;
-use btfsynth::render::{Environment, Mode, Scene, ShotPlan};
+use btfsynth::render::{Environment, Material, Mode, Scene, ShotPlan};
 use btfsynth::synth::surface_map::{
     build_pyramid, synthesize_surface as synthesize, write_surface_ply, Density, MeshLevel, SurfaceMap,
     MAX_VERTICES,
@@ -32,14 +33,14 @@ use std::sync::Arc;
 
 /// The user's mesh: a file, or arrays.
 #[derive(Clone)]
-enum Original {
+pub enum Original {
     File(PathBuf),
     Arrays(Arc<Mesh>),
 }
 
 impl Original {
     /// What provenance and errors call it.
-    fn name(&self) -> PathBuf {
+    pub fn name(&self) -> PathBuf {
         match self {
             Original::File(path) => path.clone(),
             Original::Arrays(_) => PathBuf::from(IN_MEMORY),
@@ -47,7 +48,7 @@ impl Original {
     }
 
     /// The mesh exactly as given, for an export's geometry and layout.
-    fn textured(&self) -> Result<TexturedMesh> {
+    pub fn textured(&self) -> Result<TexturedMesh> {
         match self {
             Original::File(path) => load_textured(path),
             Original::Arrays(mesh) => Ok(TexturedMesh {
@@ -158,13 +159,17 @@ impl Surface {
 }
 
 /// Positions as a flat slice of floats (glam's `Vec3` is three `f32`s, `repr(C)`).
-fn vec3s(v: &[Vec3]) -> &[f32] {
+pub fn vec3s(v: &[Vec3]) -> &[f32] {
     // SAFETY: Vec3 is #[repr(C)] { x, y, z: f32 } with no padding.
     unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<f32>(), v.len() * 3) }
 }
 
 /// The mesh argument: a path, or `vertices` `[V, 3]` with `faces` `[F, 3]`.
-fn original(py: Python<'_>, mesh: &Bound<'_, PyAny>, faces: Option<&Bound<'_, PyAny>>) -> PyResult<Original> {
+pub fn original(
+    py: Python<'_>,
+    mesh: &Bound<'_, PyAny>,
+    faces: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Original> {
     if let Some(faces) = faces {
         let positions = floats(mesh, "mesh", &[None, Some(3)], &["V", "3"])?;
         let n = positions.len() / 3;
@@ -298,17 +303,24 @@ fn lighting(env: Option<&str>, ambient: f32) -> Result<(f32, Option<Environment>
     })
 }
 
-/// Renders `surface` on the CPU as `btfsynth render` renders its first frame: float32
-/// `[height, width, 4]` linear RGB premultiplied by coverage, and coverage. `view` and
-/// `light` are (θ, φ) in degrees around the model; `env` is `sky`, `uniform` or an
-/// equirectangular `.hdr`/`.exr` file; `mode` is `pixel` or `vertex`.
+/// Renders `surface` (a `Surface`, or a `PatchMap` from `method="soler2002"`) on the CPU as
+/// `btfsynth render` renders its first frame: float32 `[height, width, 4]` linear RGB
+/// premultiplied by coverage, and coverage. `material` shades it: by default the analysis
+/// it was made from; an `Analysis` or a `Stack` of the same sample size (the whole measured
+/// BTF, say, where the analysis kept fewer images). `view` and `light` are (θ, φ) in degrees
+/// around the model; `env` is `sky`, `uniform` or an equirectangular `.hdr`/`.exr` file;
+/// `mode` is `pixel` or `vertex`.
 #[pyfunction]
-#[pyo3(signature = (surface, *, size=(512, 512), view=(70.0, 0.0), light=(45.0, 45.0), env=None, ambient=0.0, spp=4,
-    shadows=true, mode="pixel", orthographic=false))]
+#[pyo3(signature = (surface, material=None, *, size=(512, 512), view=(70.0, 0.0), light=(45.0, 45.0), env=None,
+    ambient=0.0, spp=4, shadows=true, mode="pixel", orthographic=false),
+    // Spelled out so that help() shows the tuples' values (pyo3 writes `...` for them).
+    text_signature = "(surface, material=None, *, size=(512, 512), view=(70.0, 0.0), light=(45.0, 45.0), env=None, \
+    ambient=0.0, spp=4, shadows=True, mode='pixel', orthographic=False)")]
 #[allow(clippy::too_many_arguments)]
 pub fn render<'py>(
     py: Python<'py>,
-    surface: &Bound<'py, Surface>,
+    surface: &Bound<'py, PyAny>,
+    material: Option<&Bound<'py, PyAny>>,
     size: (u32, u32),
     view: (f32, f32),
     light: (f32, f32),
@@ -339,11 +351,14 @@ pub fn render<'py>(
             return Err(value_error(py, name, "angles must be finite"));
         }
     }
-    let s = surface.get();
-    let (scene, analysis) = (s.scene.clone(), s.analysis.clone());
+    let (scene, analysis) = scene_of(surface)?;
+    let shading = shading(py, material, &analysis)?;
     let plan = ShotPlan { size: (width, height), view, light, orthographic, ..ShotPlan::default() };
     let frame = long::run(py, None, move |_| {
-        let material = analysis.material()?;
+        let material = match shading {
+            Shading::Analysis(analysis) => analysis.material()?,
+            Shading::Stack(btf) => Arc::new(Material::from_btf(&btf)?),
+        };
         let (sun, environment) = lighting(env.as_deref(), ambient)?;
         let options = RenderOptions { mode, shadows, spp, sun };
         let tracer = Tracer::new(&scene.mesh);
@@ -359,6 +374,82 @@ pub fn render<'py>(
     Ok(owned(py, array))
 }
 
+/// What a render shades with: an analysis' sample, or a stack's images.
+enum Shading {
+    Analysis(Arc<AnalysisData>),
+    Stack(Arc<btfsynth::btf::Btf>),
+}
+
+/// The scene and analysis of a `Surface` or a `PatchMap`.
+fn scene_of(surface: &Bound<'_, PyAny>) -> PyResult<(Arc<Scene>, Arc<AnalysisData>)> {
+    if let Ok(s) = surface.downcast::<Surface>() {
+        return Ok((s.get().scene.clone(), s.get().analysis.clone()));
+    }
+    if let Ok(p) = surface.downcast::<PatchMap>() {
+        return Ok((p.get().scene.clone(), p.get().analysis.clone()));
+    }
+    let got = crate::arrays::type_name(surface);
+    Err(crate::errors::type_error("surface", format!("expected a Surface or a PatchMap, got {got}")))
+}
+
+/// `material` (None, an `Analysis` or a `Stack`) as what a render of `analysis`'s result
+/// shades with; its sample must be the analysis' size (the coordinates index it).
+fn shading(
+    py: Python<'_>,
+    material: Option<&Bound<'_, PyAny>>,
+    analysis: &Arc<AnalysisData>,
+) -> PyResult<Shading> {
+    let (shading, size) = match material {
+        None => return Ok(Shading::Analysis(analysis.clone())),
+        Some(m) => match (m.downcast::<Analysis>(), m.downcast::<crate::stack::Stack>()) {
+            (Ok(a), _) => {
+                let data = a.get().data.clone();
+                let size = (data.images.width, data.images.height);
+                (Shading::Analysis(data), size)
+            }
+            (_, Ok(s)) => {
+                let btf = s.get().btf.clone();
+                let size = (btf.width(), btf.height());
+                (Shading::Stack(btf), size)
+            }
+            _ => {
+                let got = crate::arrays::type_name(m);
+                return Err(crate::errors::type_error(
+                    "material",
+                    format!("expected an Analysis or a Stack, got {got}"),
+                ));
+            }
+        },
+    };
+    let wanted = (analysis.images.width, analysis.images.height);
+    if size != wanted {
+        return Err(value_error(
+            py,
+            "material",
+            format!(
+                "a {}x{} sample; the surface's coordinates index a {}x{} one",
+                size.0, size.1, wanted.0, wanted.1
+            ),
+        ));
+    }
+    Ok(shading)
+}
+
+/// `surface` as a `Surface`; a `PatchMap` is refused with the way to export it.
+fn exported<'a, 'py>(surface: &'a Bound<'py, PyAny>) -> PyResult<&'a Bound<'py, Surface>> {
+    surface.downcast::<Surface>().map_err(|_| {
+        let got = crate::arrays::type_name(surface);
+        let message = if surface.is_instance_of::<PatchMap>() {
+            "expected a Surface: a PatchMap (method=\"soler2002\") is exported from its file, \
+             PatchMap.save(\"x.ply\") then `btfsynth export x.ply -o x.glb`"
+                .to_string()
+        } else {
+            format!("expected a Surface, got {got}")
+        };
+        crate::errors::type_error("surface", message)
+    })
+}
+
 /// Bakes `surface` into a glTF binary (`.glb`) as `btfsynth export` does and returns its
 /// bytes; with `path`, also writes them there atomically (refusing an existing file unless
 /// `overwrite`). `size` is the atlas side in texels; `light` (θ, φ) the light a BTF is
@@ -368,7 +459,7 @@ pub fn render<'py>(
 #[allow(clippy::too_many_arguments)]
 pub fn export_gltf<'py>(
     py: Python<'py>,
-    surface: &Bound<'py, Surface>,
+    surface: &Bound<'py, PyAny>,
     path: Option<PathBuf>,
     size: Option<u32>,
     light: Option<(f32, f32)>,
@@ -400,7 +491,7 @@ pub fn export_gltf<'py>(
         }
         None => None,
     };
-    let s = surface.get();
+    let s = exported(surface)?.get();
     let (scene, analysis, original) = (s.scene.clone(), s.analysis.clone(), s.original.clone());
     let name = name.unwrap_or_else(|| match &original {
         Original::File(p) => p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
