@@ -12,15 +12,18 @@ GIL, stop on Ctrl-C, and report progress to ``progress=``: a callable
     >>> picture = plane.image()                                       # float32 [512, 512, 3]
     >>> surface = btfsynth.synthesize_surface(analysis, "bunny.obj", vertices=20000)
     >>> glb = btfsynth.export_gltf(surface, "bunny.glb")
+    >>> patches = btfsynth.synthesize_surface(analysis, "bunny.obj", method="soler2002")
+    >>> frame = btfsynth.render(patches, size=(256, 256))          # float32 [256, 256, 4]
 
 Errors are :class:`btfsynth.Error` (see :mod:`btfsynth.errors`); batch runs on Dask are in
 :mod:`btfsynth.batch`.
 """
 
 import functools as _functools
+import inspect as _inspect
 
 from . import _native
-from ._native import Analysis, Plane, Stack, Surface, presets, render
+from ._native import Analysis, PatchMap, Plane, Stack, Surface, presets, render
 from .errors import (
     Error,
     FileError,
@@ -80,16 +83,51 @@ def _with_progress(native):
 
 analyze = _with_progress(_native.analyze)
 synthesize_plane = _with_progress(_native.synthesize_plane)
-synthesize_surface = _with_progress(_native.synthesize_surface)
+map_patches = _with_progress(_native.map_patches)
 export_gltf = _with_progress(_native.export_gltf)
+_synthesize_vertices = _with_progress(_native.synthesize_surface)
+
+#: The methods ``synthesize_surface`` takes, as the CLI's ``synth --method``.
+METHODS = ("vertex", "soler2002")
+
+
+def synthesize_surface(analysis, mesh, faces=None, *, method="vertex", **options):
+    """Synthesizes ``analysis`` on a mesh (a path, or vertices ``[V, 3]`` with ``faces``
+    ``[F, 3]``) as ``btfsynth synth ANALYSIS MESH --method METHOD`` does.
+
+    ``method="vertex"`` (the default): the per-vertex engine on a remeshed copy of the mesh;
+    returns a :class:`Surface`. Its keywords: ``vertices``, ``texels_across`` or ``scale``
+    (the density), ``preset`` or ``recipe``, ``seed``, ``levels``, ``k``, ``neighborhood``,
+    ``search``, ``orient``, ``progress`` (see ``help(btfsynth._native.synthesize_surface)``).
+
+    ``method="soler2002"``: hierarchical pattern mapping (Soler et al. 2002) on the mesh as it
+    is; returns a :class:`PatchMap`. Its keywords: ``scale`` or ``texels_across``, ``seed``,
+    ``rotations``, ``band``, ``max_distortion``, ``fit_threshold``, ``colour_space``,
+    ``relax``, ``keep_borders``, ``first_face``, ``orientation``, ``progress`` (see
+    ``help(btfsynth.map_patches)``).
+    """
+    natives = {"vertex": (_synthesize_vertices, _native.synthesize_surface), "soler2002": (map_patches, _native.map_patches)}
+    if method in natives:
+        call, native = natives[method]
+        known = _inspect.signature(native).parameters
+        for key in options:
+            if key not in known or known[key].kind is not _inspect.Parameter.KEYWORD_ONLY:
+                takes = ", ".join(n for n, p in known.items() if p.kind is _inspect.Parameter.KEYWORD_ONLY)
+                raise TypeError(f"{key}: not a keyword of method={method!r}; it takes {takes}")
+        return call(analysis, mesh, faces, **options)
+    error = ParameterError(f"method: '{method}': expected one of {', '.join(METHODS)}")
+    error.param = "method"
+    raise error
 
 __all__ = [
     "Analysis",
     "Error",
     "FileError",
     "InternalError",
+    "METHODS",
     "OutputError",
     "ParameterError",
+    "PatchMap",
     "Plane",
     "Stack",
     "Surface",
@@ -97,6 +135,7 @@ __all__ = [
     "UnavailableError",
     "analyze",
     "export_gltf",
+    "map_patches",
     "presets",
     "render",
     "synthesize_plane",

@@ -1,12 +1,13 @@
 """Type stubs of the extension module (see btfsynth/__init__.py for the package)."""
 
 import os
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Literal, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
 
-Progress = Optional[Callable[[int, int, str], Any]]
+# A callable progress(done, total, stage); the package's wrappers also take "tqdm" or True.
+Progress = Union[None, Callable[[int, int, str], Any], Literal["tqdm", True]]
 PathLike = Union[str, os.PathLike]
 
 __version__: str
@@ -91,6 +92,28 @@ class Surface:
     def params(self) -> dict[str, Any]: ...
     def save_ply(self, path: PathLike, overwrite: bool = False) -> str: ...
 
+class PatchMap:
+    """A pattern-mapped mesh (``method="soler2002"``): the mesh as given, with the sample
+    texel at every face corner and the patch that textured each face."""
+
+    @property
+    def vertices(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def faces(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def corner_uv(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def cluster(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def level(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def texel(self) -> float: ...
+    @property
+    def report(self) -> dict[str, Any]: ...
+    @property
+    def params(self) -> dict[str, Any]: ...
+    def save(self, path: PathLike, overwrite: bool = False) -> str: ...
+
 def analyze(
     stack: Union[Stack, PathLike],
     *,
@@ -101,7 +124,7 @@ def analyze(
     neighborhood: int = 5,
     tileable: bool = False,
     basis: int = 32,
-    appearance_dims: int = 8,
+    appearance_dims: int = 16,
     seed: int = 0,
     filters: Optional[PathLike] = None,
     crop: Optional[Tuple[int, int, int, int]] = None,
@@ -139,8 +162,28 @@ def synthesize_surface(
     orient: str = "smooth",
     progress: Progress = None,
 ) -> Surface: ...
+def map_patches(
+    analysis: Analysis,
+    mesh: Union[PathLike, npt.ArrayLike],
+    faces: Optional[npt.ArrayLike] = None,
+    *,
+    scale: Optional[float] = None,
+    texels_across: Optional[float] = None,
+    seed: int = 0,
+    rotations: int = 19,
+    band: float = 6.0,
+    max_distortion: float = 0.1,
+    fit_threshold: float = 0.3,
+    colour_space: Literal["lab", "hsv", "rgb", "appearance"] = "lab",
+    relax: bool = True,
+    keep_borders: bool = False,
+    first_face: Optional[int] = None,
+    orientation: Optional[float] = None,
+    progress: Progress = None,
+) -> PatchMap: ...
 def render(
-    surface: Surface,
+    surface: Union[Surface, PatchMap],
+    material: Union[Analysis, Stack, None] = None,
     *,
     size: Tuple[int, int] = (512, 512),
     view: Tuple[float, float] = (70.0, 0.0),
@@ -149,7 +192,7 @@ def render(
     ambient: float = 0.0,
     spp: int = 4,
     shadows: bool = True,
-    mode: str = "pixel",
+    mode: Literal["pixel", "vertex"] = "pixel",
     orthographic: bool = False,
 ) -> npt.NDArray[np.float32]: ...
 def export_gltf(

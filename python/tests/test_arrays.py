@@ -79,3 +79,21 @@ def test_the_bunny_renders_under_the_sky(analysis):
     sky = btfsynth.render(surface, size=(32, 32), spp=1, env="sky")
     covered = plain[..., 3] > 0
     assert covered.sum() > 100 and (sky[..., :3][covered].sum() > plain[..., :3][covered].sum())
+
+
+def test_a_patch_map_keeps_the_mesh_and_renders(analysis):
+    mapped = btfsynth.synthesize_surface(analysis, BUNNY, method="soler2002", rotations=5)
+    assert isinstance(mapped, btfsynth.PatchMap)
+    faces, corners = mapped.faces, mapped.corner_uv
+    assert corners.shape == (len(faces), 3, 2) and corners.dtype == np.float32 and corners.base is mapped
+    assert faces.max() < len(mapped.vertices) and mapped.cluster.shape == mapped.level.shape == (len(faces),)
+    # A sample that does not tile is never left: texel centres from 0 to 127.
+    assert corners.min() >= -0.5 and corners.max() <= 127.5
+    assert mapped.report["faces"] == len(faces)
+    # Shaded by the analysis, or by a stack of the same size: another picture.
+    frame = btfsynth.render(mapped, size=(64, 64), spp=1)
+    dark = btfsynth.Stack.from_image(np.full((128, 128, 3), 20, np.uint8))
+    other = btfsynth.render(mapped, dark, size=(64, 64), spp=1)
+    covered = frame[..., 3] > 0
+    assert covered.sum() > 200 and np.array_equal(frame[..., 3], other[..., 3])
+    assert other[..., :3][covered].mean() < frame[..., :3][covered].mean()

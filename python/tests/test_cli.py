@@ -69,3 +69,29 @@ def test_the_glb_is_the_cli_export(cli, scratch):
 def binary_chunk(glb):
     json_length = int.from_bytes(glb[12:16], "little")
     return glb[20 + json_length :]
+
+
+def test_a_patch_map_is_the_cli_uvmap_byte_for_byte(cli, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+    cli("synth", scratch / "a", BUNNY, "--method", "soler2002", "--seed", "2", "--rotations", "7", "-o", scratch / "cli.ply")
+    loaded = btfsynth.Analysis.load(scratch / "a")
+    mapped = btfsynth.synthesize_surface(loaded, BUNNY, method="soler2002", seed=2, rotations=7)
+    mapped.save(scratch / "py.ply")
+    assert (ROOT / scratch / "py.ply").read_bytes() == (ROOT / scratch / "cli.ply").read_bytes()
+    # From the analysis in memory: the same coordinates (the header names no directory).
+    in_memory = btfsynth.map_patches(btfsynth.analyze(PHOTO, **ANALYSIS), BUNNY, seed=2, rotations=7)
+    assert np.array_equal(in_memory.corner_uv, mapped.corner_uv)
+    assert np.array_equal(in_memory.cluster, mapped.cluster)
+
+
+def test_a_patch_map_on_appearance_vectors_is_the_cli_obj(cli, scratch):
+    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+    flags = ["--colour-space", "appearance", "--scale", "40", "--keep-borders", "--no-relax", "--rotations", "5"]
+    cli("synth", scratch / "a", BUNNY, "--method", "soler2002", *flags, "-o", scratch / "cli.obj")
+    mapped = btfsynth.synthesize_surface(
+        btfsynth.Analysis.load(scratch / "a"), BUNNY, method="soler2002", colour_space="appearance", scale=40,
+        keep_borders=True, relax=False, rotations=5,
+    )
+    mapped.save(scratch / "py.obj")
+    assert (ROOT / scratch / "py.obj").read_bytes() == (ROOT / scratch / "cli.obj").read_bytes()
+    assert mapped.params["colour_space"] == "appearance" and mapped.params["relax"] is False

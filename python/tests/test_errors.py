@@ -85,3 +85,33 @@ def test_an_existing_output_is_refused(analysis, scratch):
     surface = btfsynth.synthesize_surface(analysis, BUNNY, vertices=1000, levels=1)
     with pytest.raises(ValueError, match="path: .*glb"):
         btfsynth.export_gltf(surface, scratch / "x.gltf")
+
+
+def test_a_method_and_its_keywords_are_checked(analysis):
+    with pytest.raises(btfsynth.ParameterError, match="method") as e:
+        btfsynth.synthesize_surface(analysis, BUNNY, method="tong")
+    assert e.value.param == "method"
+    with pytest.raises(TypeError, match="vertices: not a keyword of method='soler2002'"):
+        btfsynth.synthesize_surface(analysis, BUNNY, method="soler2002", vertices=1000)
+    with pytest.raises(TypeError, match="rotations: not a keyword of method='vertex'"):
+        btfsynth.synthesize_surface(analysis, BUNNY, rotations=5)
+    with pytest.raises(ValueError, match="colour_space"):
+        btfsynth.map_patches(analysis, BUNNY, colour_space="xyz")
+    with pytest.raises(btfsynth.ParameterError, match="rotations"):
+        btfsynth.map_patches(analysis, BUNNY, rotations=0)
+    with pytest.raises(btfsynth.ParameterError, match="first face|first_face"):
+        btfsynth.map_patches(analysis, BUNNY, first_face=10**6)
+    with pytest.raises(ValueError, match="path: .*ply or .obj"):
+        btfsynth.map_patches(analysis, BUNNY, rotations=3).save("x.glb")
+
+
+def test_render_and_export_name_a_wrong_argument(analysis):
+    mapped = btfsynth.map_patches(analysis, BUNNY, rotations=3)
+    with pytest.raises(TypeError, match="surface: expected a Surface or a PatchMap"):
+        btfsynth.render(analysis)
+    with pytest.raises(TypeError, match="material: expected an Analysis or a Stack"):
+        btfsynth.render(mapped, "gravel.png")
+    with pytest.raises(ValueError, match="material: a 8x8 sample"):
+        btfsynth.render(mapped, btfsynth.Stack.from_image(np.zeros((8, 8, 3), np.uint8)))
+    with pytest.raises(TypeError, match="surface: expected a Surface: a PatchMap"):
+        btfsynth.export_gltf(mapped)
