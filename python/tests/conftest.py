@@ -57,6 +57,21 @@ def analysis():
     return btfsynth.analyze(PHOTO, **ANALYSIS)
 
 
+@pytest.fixture(scope="session")
+def cli_analysis(cli):
+    """The CLI's analysis of the bundled photograph with the small settings, written once
+    (relative to the repository root) for every comparison with the CLI."""
+    folder = ROOT / "target" / "pytest-scratch" / f"cli-analysis-{os.urandom(4).hex()}"
+    cli("analyze", PHOTO, "-o", folder.relative_to(ROOT), *cli_flags(ANALYSIS))
+    yield folder.relative_to(ROOT)
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def cli_flags(values):
+    """A dict of settings as the CLI's flags."""
+    return [x for k, v in values.items() for x in (f"--{k}", v)]
+
+
 @pytest.fixture
 def scratch():
     """A folder inside the repository's target/ (so relative paths to the analysis hold),

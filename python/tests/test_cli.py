@@ -6,17 +6,12 @@ from pathlib import Path
 import numpy as np
 
 import btfsynth
-from conftest import ANALYSIS, BUNNY, PHOTO, ROOT, read_png, to_srgb8
+from conftest import BUNNY, ROOT, read_png, to_srgb8
 
 
-def cli_flags(values):
-    return [x for k, v in values.items() for x in (f"--{k}", v)]
-
-
-def test_the_saved_analysis_is_the_cli_directory_byte_for_byte(cli, analysis, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "cli", *cli_flags(ANALYSIS))
+def test_the_saved_analysis_is_the_cli_directory_byte_for_byte(cli_analysis, analysis, scratch):
     analysis.save(scratch / "py")
-    ours, theirs = ROOT / scratch / "py", ROOT / scratch / "cli"
+    ours, theirs = ROOT / scratch / "py", ROOT / cli_analysis
     names = sorted(p.name for p in theirs.iterdir())
     assert names == sorted(p.name for p in ours.iterdir())
     assert "analysis.json" in names and "level0_textons.npy" in names
@@ -24,9 +19,8 @@ def test_the_saved_analysis_is_the_cli_directory_byte_for_byte(cli, analysis, sc
         assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
 
 
-def test_a_plane_is_the_cli_plane(cli, analysis, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
-    cli("synth", scratch / "a", "--plane", "96x64", "--seed", "3", "-o", scratch / "plane")
+def test_a_plane_is_the_cli_plane(cli, cli_analysis, analysis, scratch):
+    cli("synth", cli_analysis, "--plane", "96x64", "--seed", "3", "-o", scratch / "plane")
     plane = btfsynth.synthesize_plane(analysis, (64, 96), seed=3)
     out = ROOT / scratch / "plane"
     assert np.array_equal(plane.uv, np.load(out / "uv.npy").astype(np.int32))
@@ -38,26 +32,24 @@ def test_a_plane_is_the_cli_plane(cli, analysis, scratch):
     assert not np.array_equal(other.uv, plane.uv)
 
 
-def test_a_surface_map_is_the_cli_ply_byte_for_byte(cli, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+def test_a_surface_map_is_the_cli_ply_byte_for_byte(cli, cli_analysis, analysis, scratch):
     flags = ["--vertices", "3000", "--seed", "1", "--preset", "tong2002"]
-    cli("synth", scratch / "a", BUNNY, *flags, "-o", scratch / "cli.ply")
-    loaded = btfsynth.Analysis.load(scratch / "a")
+    cli("synth", cli_analysis, BUNNY, *flags, "-o", scratch / "cli.ply")
+    loaded = btfsynth.Analysis.load(cli_analysis)
     surface = btfsynth.synthesize_surface(loaded, BUNNY, vertices=3000, seed=1, preset="tong2002")
     surface.save_ply(scratch / "py.ply")
     theirs = (ROOT / scratch / "cli.ply").read_bytes()
     assert (ROOT / scratch / "py.ply").read_bytes() == theirs
     # From the analysis in memory: the same values (the header names no directory).
-    in_memory = btfsynth.synthesize_surface(btfsynth.analyze(PHOTO, **ANALYSIS), BUNNY, vertices=3000, seed=1, preset="tong2002")
+    in_memory = btfsynth.synthesize_surface(analysis, BUNNY, vertices=3000, seed=1, preset="tong2002")
     assert np.array_equal(in_memory.uv, surface.uv) and np.array_equal(in_memory.textons, surface.textons)
     assert np.array_equal(in_memory.vertices, surface.vertices)
 
 
-def test_the_glb_is_the_cli_export(cli, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
-    cli("synth", scratch / "a", BUNNY, "--vertices", "3000", "-o", scratch / "s.ply")
+def test_the_glb_is_the_cli_export(cli, cli_analysis, scratch):
+    cli("synth", cli_analysis, BUNNY, "--vertices", "3000", "-o", scratch / "s.ply")
     cli("export", scratch / "s.ply", "-o", scratch / "cli.glb", "--size", "128")
-    surface = btfsynth.synthesize_surface(btfsynth.Analysis.load(scratch / "a"), BUNNY, vertices=3000)
+    surface = btfsynth.synthesize_surface(btfsynth.Analysis.load(cli_analysis), BUNNY, vertices=3000)
     glb = btfsynth.export_gltf(surface, scratch / "py.glb", size=128)
     assert glb[:4] == b"glTF" and (ROOT / scratch / "py.glb").read_bytes() == glb
     theirs = (ROOT / scratch / "cli.glb").read_bytes()
@@ -71,25 +63,23 @@ def binary_chunk(glb):
     return glb[20 + json_length :]
 
 
-def test_a_patch_map_is_the_cli_uvmap_byte_for_byte(cli, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
-    cli("synth", scratch / "a", BUNNY, "--method", "soler2002", "--seed", "2", "--rotations", "7", "-o", scratch / "cli.ply")
-    loaded = btfsynth.Analysis.load(scratch / "a")
+def test_a_patch_map_is_the_cli_uvmap_byte_for_byte(cli, cli_analysis, analysis, scratch):
+    cli("synth", cli_analysis, BUNNY, "--method", "soler2002", "--seed", "2", "--rotations", "7", "-o", scratch / "cli.ply")
+    loaded = btfsynth.Analysis.load(cli_analysis)
     mapped = btfsynth.synthesize_surface(loaded, BUNNY, method="soler2002", seed=2, rotations=7)
     mapped.save(scratch / "py.ply")
     assert (ROOT / scratch / "py.ply").read_bytes() == (ROOT / scratch / "cli.ply").read_bytes()
     # From the analysis in memory: the same coordinates (the header names no directory).
-    in_memory = btfsynth.map_patches(btfsynth.analyze(PHOTO, **ANALYSIS), BUNNY, seed=2, rotations=7)
+    in_memory = btfsynth.map_patches(analysis, BUNNY, seed=2, rotations=7)
     assert np.array_equal(in_memory.corner_uv, mapped.corner_uv)
     assert np.array_equal(in_memory.cluster, mapped.cluster)
 
 
-def test_a_patch_map_on_appearance_vectors_is_the_cli_obj(cli, scratch):
-    cli("analyze", PHOTO, "-o", scratch / "a", *cli_flags(ANALYSIS))
+def test_a_patch_map_on_appearance_vectors_is_the_cli_obj(cli, cli_analysis, scratch):
     flags = ["--colour-space", "appearance", "--scale", "40", "--keep-borders", "--no-relax", "--rotations", "5"]
-    cli("synth", scratch / "a", BUNNY, "--method", "soler2002", *flags, "-o", scratch / "cli.obj")
+    cli("synth", cli_analysis, BUNNY, "--method", "soler2002", *flags, "-o", scratch / "cli.obj")
     mapped = btfsynth.synthesize_surface(
-        btfsynth.Analysis.load(scratch / "a"), BUNNY, method="soler2002", colour_space="appearance", scale=40,
+        btfsynth.Analysis.load(cli_analysis), BUNNY, method="soler2002", colour_space="appearance", scale=40,
         keep_borders=True, relax=False, rotations=5,
     )
     mapped.save(scratch / "py.obj")
