@@ -1,7 +1,7 @@
 //! What the method takes from an analysis and a mesh, made the same way by every front end
-//! (the CLI's `synth --method soler2002`, the Python package), so that equal inputs give
-//! equal bytes: the image patches are fitted against, the texture's scale on the mesh, and
-//! the parameters a result records.
+//! (the command line and the Python package), so that equal inputs give equal bytes: the
+//! image patches are fitted against, the texture's scale on the mesh, and the parameters a
+//! result records.
 
 use super::fit::{ColourSpace, FitImage};
 use super::SolerParams;
