@@ -89,6 +89,15 @@ impl SampleImages {
         Ok(SampleImages { width: w, height: h, values: Values::Pixels(images.data), directions })
     }
 
+    /// The images and directions of `btf`, held in memory: what [`SampleImages::open`] reads
+    /// back from the directory an analysis of `btf` was written to (one copy of the pixels).
+    pub fn from_btf(btf: &crate::btf::Btf) -> Self {
+        let directions =
+            btf.pairs().iter().map(|p| [p.light.theta, p.light.phi, p.view.theta, p.view.phi]).collect();
+        let values = Values::Pixels(btf.pixels().to_vec());
+        SampleImages { width: btf.width(), height: btf.height(), values, directions }
+    }
+
     /// Number of images.
     pub fn len(&self) -> usize {
         self.directions.len()

@@ -6,8 +6,9 @@ use super::usage;
 use anyhow::{Context, Result};
 use btfsynth::analysis::images::SampleImages;
 use btfsynth::fsutil::{commit_all, Staged};
-use btfsynth::synth::patches::fit::{ColourSpace, FitImage};
+use btfsynth::synth::patches::fit::ColourSpace;
 use btfsynth::synth::patches::output::{write_uv_map, Provenance};
+use btfsynth::synth::patches::prepare::{fit_sample, recorded_params, texels_per_unit, Matching};
 use btfsynth::synth::patches::{check_size, map_mesh, SolerParams};
 use std::path::Path;
 use std::time::Instant;
@@ -102,44 +103,23 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     let tileable = manifest.params.tileable;
     // The sample's size as the analysis records it, for the bounds below.
     let (w, h) = (manifest.width, manifest.height);
-    let colour = match args.colour_space {
-        ColourArg::Lab | ColourArg::Appearance => ColourSpace::Lab,
-        ColourArg::Hsv => ColourSpace::Hsv,
-        ColourArg::Rgb => ColourSpace::Rgb,
+    let matching = match args.colour_space {
+        ColourArg::Lab => Matching::Colour(ColourSpace::Lab),
+        ColourArg::Hsv => Matching::Colour(ColourSpace::Hsv),
+        ColourArg::Rgb => Matching::Colour(ColourSpace::Rgb),
+        ColourArg::Appearance => Matching::Appearance,
     };
     // The mesh and the size are checked before the sample is read: nothing is worked on
     // that a bound then refuses.
     let mesh = btfsynth::mesh::textured::load_textured(common.mesh)?;
-    let texels_per_unit = match (common.scale, common.texels_across) {
-        (Some(s), _) => s,
-        (None, across) => {
-            let (lo, hi) = btfsynth::mesh::bounds_of(&mesh.positions);
-            let side = (hi - lo).max_element();
-            // NaN fails too: a mesh without finite extent. The file's fault, not a flag's.
-            if side.is_nan() || side <= 0.0 {
-                return Err(btfsynth::Error::format(
-                    common.mesh,
-                    "the mesh has no extent to scale a texture to (are all its vertices at one point?)",
-                )
-                .into());
-            }
-            let texels_per_unit = across.unwrap_or(4.0 * w as f32) / side;
-            if !texels_per_unit.is_finite() {
-                let why = format!(
-                    "the mesh is {side:e} across, too small to scale a texture to in single precision"
-                );
-                return Err(btfsynth::Error::format(common.mesh, why).into());
-            }
-            texels_per_unit
-        }
-    };
+    let texels_per_unit = texels_per_unit(&mesh.positions, common.scale, common.texels_across, w, common.mesh)?;
     let params = SolerParams {
         texels_per_unit,
         rotations: args.rotations,
         band: args.band,
         max_flat_error: args.max_distortion,
         max_fit_error: args.fit_threshold,
-        colour,
+        colour: matching.colour_space(),
         relax: !args.no_relax,
         move_borders: !args.keep_borders,
         matching: true,
@@ -157,28 +137,22 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
         )));
     }
     let channels = match args.colour_space {
-        ColourArg::Appearance => APPEARANCE_CHANNELS,
+        ColourArg::Appearance => Matching::APPEARANCE_DIMS,
         _ => 3,
     };
     check_size(&mesh.positions, &mesh.triangles, common.mesh, &params, (w, h, channels))
         .map_err(|e| size_error(e, &common))?;
     let images = SampleImages::open(common.analysis)?;
-    // The sample as seen head-on (a photograph's only image).
-    let shown = images.default_probes()[0].image;
-    let (w, h) = (images.width, images.height);
-    let sample = match args.colour_space {
-        ColourArg::Appearance => appearance_image(common.analysis, tileable)?,
-        _ => FitImage::from_rgb(w, h, |x, y| images.rgb(shown, x, y), colour, tileable)?,
+    // The levels are read only for their appearance vectors.
+    let finest = match matching {
+        Matching::Appearance => Some(btfsynth::synth::Sample::open(common.analysis, 1)?),
+        Matching::Colour(_) => None,
     };
+    let appearance = finest.as_ref().and_then(|s| s.levels[0].appearance.as_ref());
+    let (sample, shown) =
+        fit_sample(&images, appearance, matching, tileable, common.analysis).map_err(super::usage_of)?;
     let result = map_mesh(&mesh.positions, &mesh.triangles, common.mesh, sample, &params, bars)?;
-    let colour_name = format!("{:?}", args.colour_space).to_lowercase();
-    let mut params_json = serde_json::json!({
-        "method": "soler2002", "texels_per_unit": texels_per_unit, "rotations": params.rotations,
-        "band": params.band, "max_distortion": params.max_flat_error, "fit_threshold": params.max_fit_error,
-        "colour_space": colour_name, "relax": params.relax,
-        "move_borders": params.move_borders, "seed": params.seed, "image": shown,
-        "first_face": params.first_face, "orientation": params.orientation,
-    });
+    let mut params_json = recorded_params(&params, matching, shown);
     let provenance = Provenance {
         analysis: common.analysis,
         mesh: common.mesh,
@@ -241,9 +215,6 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     Ok(())
 }
 
-/// The most appearance dimensions the fitting image takes.
-const APPEARANCE_CHANNELS: usize = 8;
-
 /// A refusal of [`check_size`]: a size beyond the limit as a usage error naming the flag
 /// that set it (`--texels-across`, also where its default was taken); the file's fault, or
 /// the memory budget's (as the vertex engine's), as it is.
@@ -264,22 +235,4 @@ fn size_error(e: btfsynth::Error, common: &Common) -> anyhow::Error {
         e @ btfsynth::Error::OutOfRange { .. } => super::usage_of(e),
         e => e.into(),
     }
-}
-
-/// The analysis' finest appearance vectors (at most [`APPEARANCE_CHANNELS`] dimensions) as
-/// the fitting image.
-fn appearance_image(analysis: &Path, tileable: bool) -> Result<FitImage> {
-    let sample = btfsynth::synth::Sample::open(analysis, 1)?;
-    let level = &sample.levels[0];
-    let map = level.appearance.as_ref().ok_or_else(|| {
-        usage(format!("{}: this analysis has no appearance vectors (re-run analyze)", analysis.display()))
-    })?;
-    let dims = map.dims.min(APPEARANCE_CHANNELS);
-    let mut values = Vec::with_capacity(level.width * level.height * dims);
-    for y in 0..level.height as i64 {
-        for x in 0..level.width as i64 {
-            values.extend_from_slice(&map.at(x, y)[..dims]);
-        }
-    }
-    Ok(FitImage::new(level.width, level.height, dims, values, tileable)?)
 }

@@ -199,10 +199,24 @@ impl Sample {
     /// matches colours, since a BTF's images are large.
     pub fn load_colours(&mut self, dir: &Path) -> Result<()> {
         let images = crate::analysis::images::SampleImages::open(dir)?;
+        self.colours_from(&images).map_err(|(file, message)| Error::format(dir.join(file), message))
+    }
+
+    /// [`Sample::load_colours`] from the sample's images already in memory
+    /// ([`crate::analysis::images::SampleImages::from_btf`] for an analysis never written).
+    pub fn set_colours(&mut self, images: &crate::analysis::images::SampleImages) -> Result<()> {
+        self.colours_from(images).map_err(|(_, message)| Error::invalid(message))
+    }
+
+    /// The colours of every level; an error names the analysis file at fault and the fault.
+    fn colours_from(
+        &mut self,
+        images: &crate::analysis::images::SampleImages,
+    ) -> std::result::Result<(), (&'static str, &'static str)> {
         let (w, h) = (self.manifest.width, self.manifest.height);
         let selected = &self.manifest.selected;
         if (images.width, images.height) != (w, h) || selected.iter().any(|&i| i >= images.len()) {
-            return Err(Error::format(dir.join("images.npy"), "the images do not match analysis.json"));
+            return Err(("images.npy", "the images do not match analysis.json"));
         }
         let mut mean = vec![0.0f32; w * h * 3];
         for &i in selected {
@@ -220,7 +234,7 @@ impl Sample {
                 (colours, size) = (down, (dw, dh));
             }
             if (level.width, level.height) != size {
-                return Err(Error::format(dir.join(MANIFEST), "the level sizes do not halve"));
+                return Err((MANIFEST, "the level sizes do not halve"));
             }
             level.colour = Some(AppearanceMap::new(size.0, size.1, 3, &colours, tileable));
         }

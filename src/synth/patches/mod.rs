@@ -44,6 +44,7 @@ pub mod hierarchy;
 pub mod mapper;
 pub mod mapping;
 pub mod output;
+pub mod prepare;
 pub mod quality;
 pub mod relax;
 
