@@ -59,9 +59,16 @@ pub struct EvalArgs {
     /// (which reads the original mesh and bakes an atlas in memory).
     #[arg(long)]
     no_texture: bool,
+    /// An exported model that does not record it (another tool's): one sample texel in
+    /// model units on its surface.
+    #[arg(long, value_name = "UNITS")]
+    sample_texel: Option<f32>,
 }
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
+    if let Some(t) = args.sample_texel.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(super::usage(format!("--sample-texel must be a positive length, not {t}")));
+    }
     let evaluation = if args.result.join(MANIFEST).is_file() {
         check_analysis(&args, plane_fingerprint(&args.result).as_deref())?;
         evaluate_plane(&args.analysis, &args.result)?
@@ -70,7 +77,7 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
         evaluate_uv_map(&args.analysis, &map)?
     } else if is_model(&args.result) {
-        evaluate_model(&args.analysis, &args.result, None)?
+        evaluate_model(&args.analysis, &args.result, args.sample_texel)?
     } else if is_picture(&args.result) {
         evaluate_picture(&args.analysis, &args.result)?
     } else if args.result.is_file() {
