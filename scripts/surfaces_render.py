@@ -10,6 +10,7 @@ Writes OUT_PREFIX-whole.png and OUT_PREFIX-close.png.
 """
 import argparse
 import math
+import os
 
 import bpy
 from mathutils import Vector
@@ -55,7 +56,7 @@ def main():
     for name, distance, aim in (("whole", 2.2 * extent, centre), ("close", 0.55 * extent, front_point(meshes, centre))):
         camera.location = aim + direction * distance
         camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
-        scene.render.filepath = f"{a.out}-{name}.png"
+        scene.render.filepath = os.path.abspath(f"{a.out}-{name}.png")
         bpy.ops.render.render(write_still=True)
 
 
