@@ -402,7 +402,8 @@ mod tests {
         let sample = pattern(96, 96);
         let all = vec![true; 96 * 96];
         let own = texture_figures(&sample, &all, &sample, 1.0, true);
-        assert!((own.contrast - 1.0).abs() < 1e-9 && (own.detail - 1.0).abs() < 1e-9, "{own:?}");
+        // The atlas is not wrapped (its edges lose a ring of Laplacians), the sample is.
+        assert!((own.contrast - 1.0).abs() < 1e-9 && (own.detail - 1.0).abs() < 0.02, "{own:?}");
         assert!(own.smeared <= 2.0 * FLATTEST && own.colour_chi2 == 0.0, "{own:?}");
         // The sample at twice its size, read back at scale 1: upscaled, so blurred.
         let upscaled = resample(&sample, 2.0, true);
