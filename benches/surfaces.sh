@@ -9,11 +9,13 @@
 # model and a close-up, scripts/surfaces_render.py), the renders put in one montage per case
 # (rows: routes; columns: whole, close-up), and the btfsynth routes' exported textures judged
 # by `btfsynth eval ANALYSIS MODEL.glb` (smeared share, detail, contrast, colour against the
-# sample at the same texels per sample texel). A table of the figures ends in OUT/table.md.
+# sample at the same texels per sample texel). Their table is appended to
+# OUT/table.md (delete it for a fresh one), so runs with other MESHES or PHOTOS add rows.
 #
 #   benches/surfaces.sh [OUT]        (default target/surfaces)
 # Environment: PHOTOS, MESHES (names under ../shared/data), ACROSS (sample texels across the
 # mesh's largest side, as a multiple of the sample's width; default 4, synth's own default),
+# TEXELS (sample texels across, the same for every photo; overrides ACROSS),
 # SIZE (render side, 384), SAMPLES (Cycles samples, 16), BLENDER=0 (figures only), PEER
 # (texture-synthesis binary; default target/peer/bin/texture-synthesis, else none).
 #
@@ -34,8 +36,10 @@ size=${SIZE:-384}
 samples=${SAMPLES:-16}
 mkdir -p "$out"
 table=$out/table.md
-echo "| photo | mesh | route | smeared | detail | contrast | colour chi2 | synth s | export s |" > "$table"
-echo "|---|---|---|---|---|---|---|---|---|" >> "$table"
+[ -f "$table" ] || {
+  echo "| photo | mesh | texels | route | smeared | detail | contrast | colour chi2 | synth s | export s |"
+  echo "|---|---|---|---|---|---|---|---|---|---|"
+} > "$table"
 
 figures() { # analysis model.glb -> "smeared | detail | contrast | chi2"
   "$bin" -q eval "$1" "$2" --json | "$py" -c 'import json,sys; t=json.load(sys.stdin)["texture"]; print("%.3f | %.3f | %.3f | %.4f" % (t["smeared"], t["detail"], t["contrast"], t["colour_chi2"]))'
@@ -47,7 +51,7 @@ for photo in $photos; do
   an=$out/$name.analysis
   [ -d "$an" ] || "$bin" -q analyze "$data/textures/$photo" -o "$an"
   width=$("$py" -c "from PIL import Image; print(Image.open('$data/textures/$photo').size[0])")
-  texels=$((across * width))
+  texels=${TEXELS:-$((across * width))}
   tile=$out/$name-tile.png
   if [ -x "$peer" ] && [ ! -f "$tile" ]; then
     "$peer" --out-size $((2 * width)) --tiling -o "$tile" generate "$data/textures/$photo" > /dev/null
@@ -59,7 +63,7 @@ for photo in $photos; do
       extra=(); [ $route = soler2002 ] && extra=(--method soler2002)
       ts=$(seconds "$bin" -q synth "$an" "$data/meshes/$mesh" --texels-across "$texels" "${extra[@]}" -o "$case-$route.ply" --force)
       te=$(seconds "$bin" -q export "$case-$route.ply" -o "$case-$route.glb" --force)
-      echo "| $name | ${mesh%.*} | $route | $(figures "$an" "$case-$route.glb") | $ts | $te |" >> "$table"
+      echo "| $name | ${mesh%.*} | $texels | $route | $(figures "$an" "$case-$route.glb") | $ts | $te |" >> "$table"
       if [ "${BLENDER:-1}" = 1 ]; then
         "$py" "$root/scripts/surfaces_render.py" "$case-$route.glb" "$case-$route" --size "$size" --samples "$samples" > /dev/null
         row+=("$case-$route")
@@ -70,7 +74,7 @@ for photo in $photos; do
       tpu=$("$py" -c "import json,struct; b=open('$case-default.glb','rb').read(); n=struct.unpack('<I',b[12:16])[0]; j=json.loads(b[20:20+n]); print(1/j['materials'][0]['extras']['btfsynth']['sampleTexel'])")
       "$py" "$root/scripts/surfaces_render.py" "$case-default.glb" "$case-triplanar" --triplanar "$tile" --texels-per-unit "$tpu" --size "$size" --samples "$samples" > /dev/null
       row+=("$case-triplanar")
-      echo "| $name | ${mesh%.*} | triplanar | (rendered only) | | | | | |" >> "$table"
+      echo "| $name | ${mesh%.*} | $texels | triplanar | (rendered only) | | | | | |" >> "$table"
     fi
     if [ ${#row[@]} -gt 0 ]; then
       "$py" - "$case-montage.png" "${row[@]}" <<'PY'

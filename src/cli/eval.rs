@@ -189,8 +189,8 @@ fn table(args: &EvalArgs, e: &Evaluation) -> String {
     if let Some(t) = &e.texture {
         let _ = writeln!(
             out,
-            "  texture on the surface ({:.2} texels per sample texel, {} windows): smeared {:.3} (sample 0.05), detail {:.3}, contrast {:.3}, colour chi2 {:.4}, colour shift {:.4}",
-            t.scale, t.windows, t.smeared, t.detail, t.contrast, t.colour_chi2, t.colour_shift
+            "  texture on the surface ({:.2} texels per sample texel, {} windows): smeared {:.3} (sample 0.05), detail {:.3}, contrast {:.3}, colour chi2 {:.4}, colour shift {:.4}, patch energy {:.5}",
+            t.scale, t.windows, t.smeared, t.detail, t.contrast, t.colour_chi2, t.colour_shift, t.patch_energy
         );
     }
     out.trim_end().to_string()

@@ -565,7 +565,9 @@ fn vertex_colours_are_the_dense_mesh_with_one_colour_per_vertex() {
 #[test]
 fn an_exported_photo_is_about_as_free_of_smears_as_soler2002() {
     const TEST: &str = "an_exported_photo_is_about_as_free_of_smears_as_soler2002";
-    let Some(photo) = btfsynth::testdata::shared_data(TEST, "textures/gimp-Stone_marble2.png") else { return };
+    let Some(photo) = btfsynth::testdata::shared_data(TEST, "textures/gimp-Stone_marble2.png") else {
+        return;
+    };
     let Some(mesh) = btfsynth::testdata::shared_data(TEST, "meshes/bunny-1k8.obj") else { return };
     let dir = tempfile::tempdir().expect("tempdir");
     let analysis = dir.path().join("an");
