@@ -341,6 +341,58 @@ fn predict_uv(v: u32, p: vec3<f32>) -> vec2<f32> {
     return uv_of(v) + vec2<f32>(dot(d, vertices[v].s_u.xyz), -dot(d, vertices[v].t_v.xyz)) / u.params.x;
 }
 
+// render::scene::AGREE_TEXELS
+const AGREE_TEXELS: f32 = 2.0;
+
+// The offset from a to b, across the wrap when the sample tiles (Scene::point_uv's).
+fn wrapped_offset(a: vec2<f32>, b: vec2<f32>) -> vec2<f32> {
+    let d = b - a;
+    if u.flags.w == 0u {
+        return d;
+    }
+    let size = vec2<f32>(f32(u.atlas.x), f32(u.atlas.y));
+    return d - size * round(d / size);
+}
+
+fn agree(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    let d = wrapped_offset(a, b);
+    return select(0.0, 1.0, dot(d, d) <= AGREE_TEXELS * AGREE_TEXELS);
+}
+
+struct PointUv {
+    uv: vec2<f32>,
+    // each corner's weight in it (0 outside the chosen group)
+    weights: vec3<f32>,
+};
+
+// Scene::point_uv: the predictions that agree with the heaviest group's lead, interpolated.
+fn point_uv(qa: vec2<f32>, qb: vec2<f32>, qc: vec2<f32>, w: vec3<f32>) -> PointUv {
+    let ab = agree(qa, qb);
+    let ac = agree(qa, qc);
+    let bc = agree(qb, qc);
+    let group = vec3<f32>(w.x + ab * w.y + ac * w.z, ab * w.x + w.y + bc * w.z, ac * w.x + bc * w.y + w.z);
+    // the largest group weight, then the larger own weight, then the last (Iterator::max_by)
+    var lead = 0u;
+    if group.y > group.x || (group.y == group.x && w.y >= w.x) {
+        lead = 1u;
+    }
+    if group.z > group[lead] || (group.z == group[lead] && w.z >= w[lead]) {
+        lead = 2u;
+    }
+    var q = array<vec2<f32>, 3>(qa, qb, qc);
+    let agrees = array<vec3<f32>, 3>(vec3<f32>(1.0, ab, ac), vec3<f32>(ab, 1.0, bc), vec3<f32>(ac, bc, 1.0));
+    let total = max(group[lead], 1.17549435e-38);
+    var uv = q[lead];
+    var weights = vec3<f32>(0.0);
+    for (var j = 0u; j < 3u; j++) {
+        if agrees[lead][j] > 0.0 {
+            weights[j] = w[j] / total;
+            uv += weights[j] * wrapped_offset(q[lead], q[j]);
+        }
+    }
+    return PointUv(uv, weights);
+}
+
 @fragment
 fn fs_surface(in: Varyings) -> @location(0) vec4<f32> {
     let a = corners[in.triangle * 3u];
@@ -359,19 +411,21 @@ fn fs_surface(in: Varyings) -> @location(0) vec4<f32> {
     if u.flags.x == 0u {
         return vec4<f32>(in.colour, 1.0);
     }
-    let uv_a = predict_uv(a, p);
-    let uv_b = predict_uv(b, p);
-    let uv_c = predict_uv(c, p);
+    // one coordinate per pixel (Scene::point_uv); the corners' blends still interpolate
+    let point = point_uv(predict_uv(a, p), predict_uv(b, p), predict_uv(c, p), in.bary);
+    let uv = point.uv;
     var colour = vec3<f32>(0.0);
     if u.lighting.x > 0.0 && dot(normal, u.light.xyz) > 0.0 {
         let lit = light_reaches(p, normal);
         if lit > 0.0 {
             colour = u.lighting.x * lit
-                * (in.bary.x * shade(a, uv_a) + in.bary.y * shade(b, uv_b) + in.bary.z * shade(c, uv_c));
+                * (in.bary.x * shade(a, uv) + in.bary.y * shade(b, uv) + in.bary.z * shade(c, uv));
         }
     }
     if u.lighting.y != 0.0 {
-        colour += in.bary.x * ambient_at(a, uv_a) + in.bary.y * ambient_at(b, uv_b) + in.bary.z * ambient_at(c, uv_c);
+        // each vertex's environment patch covers its own copy: the chosen corners' only
+        let w = point.weights;
+        colour += w.x * ambient_at(a, uv) + w.y * ambient_at(b, uv) + w.z * ambient_at(c, uv);
     }
     return vec4<f32>(colour, 1.0);
 }

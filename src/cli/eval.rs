@@ -5,7 +5,8 @@ use super::progress::Bars;
 use anyhow::{bail, Result};
 use btfsynth::analysis::store::verify_fingerprint;
 use btfsynth::eval::report::{
-    evaluate_picture, evaluate_plane, evaluate_surface, evaluate_uv_map, Evaluation,
+    evaluate_model, evaluate_picture, evaluate_plane, evaluate_surface, evaluate_surface_export,
+    evaluate_uv_map, Evaluation,
 };
 use btfsynth::synth::patches::output::{read_uv_map, uv_map_comments};
 use btfsynth::synth::plane::MANIFEST;
@@ -25,18 +26,27 @@ use std::path::PathBuf;
                  the sample was copied whole, a tiling rather than a synthesis)
   coherence      mean output vertices per contiguously copied patch
   texton chi2, texton energy   Tong's texton-space figures (histogram, distance through Γ)
+  texture (an exported .glb/.gltf, or a surface map exported in memory): its base colour on
+    the surface against the sample resampled to the same texels per sample texel:
+    smeared      share of 12x12-texel windows flatter than the sample's flattest 5%
+                 (the sample itself: 0.05; want no more)
+    detail       high-frequency (Laplacian) energy over the sample's: 1 is right
+    contrast     luma standard deviation over the sample's: 1 is right
+    colour       histogram chi2, and the distance between mean colours (sRGB 0-1)
 
 Examples:
   btfsynth eval stone.analysis/ plane/            a plane result (synth --plane)
   btfsynth eval stone.analysis/ bunny.ply         a surface map
   btfsynth eval stone.analysis/ bunny-uv.ply      texture coordinates (synth --method soler2002)
+  btfsynth eval stone.analysis/ bunny.glb         an exported model (btfsynth export)
   btfsynth eval stone.analysis/ other-tool.png    any picture, e.g. another synthesizer's")]
 pub struct EvalArgs {
     /// The analysis directory the result was synthesized from (or should look like).
     analysis: PathBuf,
     /// A surface map (the PLY from `synth ANALYSIS MESH`), a texture-mapped mesh (from
     /// `synth --method soler2002`), a plane result directory, or a
-    /// PNG/JPEG picture (image-space measures only).
+    /// PNG/JPEG picture (image-space measures only), or an exported model (.glb/.gltf: its
+    /// texture on the surface).
     result: PathBuf,
     /// Print one JSON object instead of the table.
     #[arg(long)]
@@ -45,9 +55,20 @@ pub struct EvalArgs {
     /// result was synthesized from.
     #[arg(long)]
     force_analysis: bool,
+    /// A surface map: leave out the figures of its texture as `export` would bake it
+    /// (which reads the original mesh and bakes an atlas in memory).
+    #[arg(long)]
+    no_texture: bool,
+    /// An exported model that does not record it (another tool's): one sample texel in
+    /// model units on its surface.
+    #[arg(long, value_name = "UNITS")]
+    sample_texel: Option<f32>,
 }
 
 pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
+    if let Some(t) = args.sample_texel.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(super::usage(format!("--sample-texel must be a positive length, not {t}")));
+    }
     let evaluation = if args.result.join(MANIFEST).is_file() {
         check_analysis(&args, plane_fingerprint(&args.result).as_deref())?;
         evaluate_plane(&args.analysis, &args.result)?
@@ -55,6 +76,8 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
         let map = read_uv_map(&args.result)?;
         check_analysis(&args, map.comment(ANALYSIS_FINGERPRINT_KEY))?;
         evaluate_uv_map(&args.analysis, &map)?
+    } else if is_model(&args.result) {
+        evaluate_model(&args.analysis, &args.result, args.sample_texel)?
     } else if is_picture(&args.result) {
         evaluate_picture(&args.analysis, &args.result)?
     } else if has_extension(&args.result, &["exr"]) {
@@ -73,7 +96,11 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
             .and_then(|p| serde_json::from_str::<serde_json::Value>(p).ok())
             .and_then(|p| p["neighborhood"].as_u64())
             .unwrap_or(5) as usize;
-        evaluate_surface(&args.analysis, &map, neighborhood, &args.result)?
+        let mut evaluation = evaluate_surface(&args.analysis, &map, neighborhood, &args.result)?;
+        if !args.no_texture {
+            evaluation.texture = evaluate_surface_export(&args.analysis, &args.result)?.texture;
+        }
+        evaluation
     } else {
         bail!("{}: not a result: {EXPECTED}", args.result.display());
     };
@@ -87,7 +114,7 @@ pub fn run(args: EvalArgs, _bars: &Bars) -> Result<()> {
 
 /// What `eval` measures, for messages about what it does not.
 const EXPECTED: &str =
-    "expected a plane directory, a surface map PLY, a soler2002 uvmap (.ply/.obj) or a PNG/JPEG picture";
+    "expected a plane directory, a surface map PLY, a soler2002 uvmap (.ply/.obj), an exported .glb/.gltf or a PNG/JPEG picture";
 
 /// Refuses an analysis of another sample than the one the result records (`recorded`),
 /// unless `--force-analysis`. A picture records none.
@@ -103,6 +130,11 @@ fn plane_fingerprint(dir: &std::path::Path) -> Option<String> {
     let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
     let manifest: serde_json::Value = serde_json::from_str(&text).ok()?;
     manifest["analysis_fingerprint"].as_str().map(str::to_string)
+}
+
+fn is_model(path: &std::path::Path) -> bool {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    path.is_file() && matches!(ext.as_deref(), Some("glb" | "gltf"))
 }
 
 fn is_picture(path: &std::path::Path) -> bool {
@@ -164,6 +196,13 @@ fn table(args: &EvalArgs, e: &Evaluation) -> String {
             s.interior,
             s.interior_windows,
             s.border / s.interior
+        );
+    }
+    if let Some(t) = &e.texture {
+        let _ = writeln!(
+            out,
+            "  texture on the surface ({:.2} texels per sample texel, {} windows): smeared {:.3} (sample 0.05), detail {:.3}, contrast {:.3}, colour chi2 {:.4}, colour shift {:.4}, patch energy {:.5}",
+            t.scale, t.windows, t.smeared, t.detail, t.contrast, t.colour_chi2, t.colour_shift, t.patch_energy
         );
     }
     out.trim_end().to_string()

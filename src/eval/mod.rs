@@ -3,6 +3,8 @@
 //! - [`picture`]: image space, on what a user sees: nearest-patch energy at two scales,
 //!   colour χ², contrast; [`quality`] all of them at once; [`repetition`]: sample places recurring at regular offsets, and
 //!   how evenly the sample is used.
+//! - [`surface`]: a texture as it lies on a surface (an exported model's, or a surface
+//!   map's baked), against the sample at the same scale: smeared share, detail, contrast, colour.
 //! - [`coords`]: the coordinate map: collapse, smear, copy, coherence.
 //! - [`texton`]: texton space (Tong's terms): texton χ² and Γ energy.
 //!
@@ -14,6 +16,7 @@ pub mod picture;
 pub mod quality;
 pub mod repetition;
 pub mod report;
+pub mod surface;
 pub mod texton;
 
 pub use coords::{coord_quality, CoordQuality};

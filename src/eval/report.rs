@@ -7,6 +7,7 @@ use super::picture::{
 };
 use super::quality::{picture_quality, PictureQuality};
 use super::repetition::Repetition;
+use super::surface::{model_figures, TextureFigures};
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
 use crate::synth::engine::State;
@@ -37,6 +38,10 @@ pub struct Evaluation {
     /// inside one patch, on the head-on image.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<crate::synth::patches::quality::SeamQuality>,
+    /// An exported model, or a surface map exported in memory: its base colour texture on
+    /// the surface against the sample at the same scale ([`super::surface`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture: Option<TextureFigures>,
 }
 
 /// The image-space measures under one view/light pair.
@@ -83,6 +88,7 @@ pub fn evaluate_plane(analysis_dir: &Path, plane_dir: &Path) -> Result<Evaluatio
         textons: Some(texton_quality(&level, &state, &sample)),
         probes,
         seams: None,
+        texture: None,
     })
 }
 
@@ -121,6 +127,7 @@ pub fn evaluate_surface(
         textons: Some(texton_quality(&level, &map.state, &sample)),
         probes,
         seams: None,
+        texture: None,
     })
 }
 
@@ -186,6 +193,7 @@ pub fn evaluate_uv_map(
         textons: None,
         probes,
         seams,
+        texture: None,
     })
 }
 
@@ -231,6 +239,58 @@ pub fn evaluate_picture(analysis_dir: &Path, path: &Path) -> Result<Evaluation> 
         textons: None,
         probes: vec![ProbeQuality { probe, quality, wrap_seam_energy: None }],
         seams: None,
+        texture: None,
+    })
+}
+
+/// An exported model (`.glb` or `.gltf`, from [`crate::export`]) against the analysis in
+/// `analysis_dir`: its base colour texture on its surface ([`model_figures`]) against the
+/// analysis' head-on image. The sample's texel size on the surface is the one the export
+/// recorded (`extras.btfsynth.sampleTexel`), or `texel` when given.
+pub fn evaluate_model(analysis_dir: &Path, path: &Path, texel: Option<f32>) -> Result<Evaluation> {
+    let model = crate::export::read::read_model(path)?;
+    let texel = texel.or_else(|| model.extras["btfsynth"]["sampleTexel"].as_f64().map(|t| t as f32));
+    let texel = texel.filter(|t| t.is_finite() && *t > 0.0).ok_or_else(|| {
+        Error::invalid(format!(
+            "{}: the model does not record the sample's texel size on its surface (extras.btfsynth.sampleTexel)",
+            path.display()
+        ))
+    })?;
+    model_evaluation(analysis_dir, &model, texel)
+}
+
+/// A surface map exported in memory as `export` would (default options, the original mesh
+/// its header names), then judged as [`evaluate_model`] judges the file.
+pub fn evaluate_surface_export(analysis_dir: &Path, ply: &Path) -> Result<Evaluation> {
+    use crate::export::{bake_export, original_mesh, ExportOptions, ExportSource, SourceNames};
+    let (scene, _) = crate::render::scene::open_surface(ply, Some(analysis_dir), false)?;
+    let material = crate::render::Material::open(analysis_dir)?;
+    let mesh_path = original_mesh(ply, None)?;
+    let mesh = crate::mesh::textured::load_textured(&mesh_path)?;
+    let names = SourceNames { surface: ply, analysis: analysis_dir, mesh: &mesh_path };
+    let source = ExportSource { scene: &scene, material: &material, maps: &[], mesh: Some(&mesh), names };
+    let exported = bake_export("eval", &source, &ExportOptions::default(), &crate::progress::Silent)?;
+    let model = crate::export::read::model_from_bytes(&exported.document.to_glb(), ply)?;
+    model_evaluation(analysis_dir, &model, scene.texel)
+}
+
+fn model_evaluation(
+    analysis_dir: &Path,
+    model: &crate::export::read::Model,
+    texel: f32,
+) -> Result<Evaluation> {
+    let images = SampleImages::open(analysis_dir)?;
+    let tileable = crate::analysis::store::read_manifest(analysis_dir)?.params.tileable;
+    let probe = images.default_probes().remove(0);
+    let figures = model_figures(model, &images.picture(probe.image), tileable, texel)?;
+    Ok(Evaluation {
+        kind: "model",
+        vertices: model.positions.len(),
+        coords: None,
+        textons: None,
+        probes: Vec::new(),
+        seams: None,
+        texture: Some(figures),
     })
 }
 

@@ -1,16 +1,16 @@
 //! Baking: per atlas texel, the surface point it shows on the user's mesh, the nearest point
 //! of the synthesized surface, the sample coordinate there, and the material looked up.
 //!
-//! The lookup is the renderer's pixel mode ([`crate::render::Mode::Pixel`]): each corner of
-//! the synthesized triangle predicts a sample coordinate (its own plus the point's offset in
-//! its tangent frame, [`Scene::predict_uv`]) and the three lookups through the shared
-//! shading core ([`Material::shade`]) are blended by barycentric weight. A coordinate cannot
-//! be averaged across patches, so the *coordinate map* takes the prediction of the corner
-//! nearest the point.
+//! The lookup is the renderer's pixel mode ([`crate::render::Mode::Pixel`]): one coordinate
+//! per texel ([`Scene::point_uv`]: the corners' predictions interpolated where they show one
+//! copy of the sample, the heavier side taken whole at a seam), and one lookup there through
+//! the shared shading core ([`Material::shade`]), so the texture is as crisp as the sample
+//! and a seam is a cut, never a blend of two copies. The *coordinate map* holds that same
+//! coordinate.
 //!
-//! **Normal maps** are re-oriented per corner: the sample's tangent-space normal
+//! **Normal maps** are re-oriented by the corners' frames: the sample's tangent-space normal
 //! (x along the sample's s, y along t = image up, z along n) is turned into a world
-//! direction with that corner's synthesized frame (s, t, n), the three are blended, and the
+//! direction with the synthesized frames (s, t, n) of the corners whose copy it shows, and the
 //! result is expressed in the atlas' tangent frame at the texel (the glTF tangent, bitangent
 //! and normal interpolated from the mesh's vertices, see [`super::layout::vertex_tangents`]).
 //! A sample laid on the surface rotated by 90° thus gets its normals' x and y rotated by
@@ -182,30 +182,28 @@ fn bake_texel(
     let scene = source.scene;
     let dense = scene.mesh.triangles()[nearest.triangle as usize].map(|v| v as usize);
     let [a, b, c] = dense.map(|v| scene.mesh.positions()[v]);
-    let weights = barycentric(nearest.point, a, b, c).to_array();
-    let predicted = dense.map(|v| scene.predict_uv(v, nearest.point));
-    let mut colour = Vec3::ZERO;
-    for k in 0..3 {
-        colour += weights[k] * source.material.shade(&source.blend, predicted[k].x, predicted[k].y);
-    }
-    let nearest_corner = (0..3).max_by(|&i, &j| weights[i].total_cmp(&weights[j])).unwrap_or(0);
-    let coordinate = inside(source.material, predicted[nearest_corner]);
+    let weights = barycentric(nearest.point, a, b, c);
+    let corner_ids = dense.map(|v| v as u32);
+    let (uv, chosen) = scene.point_uv(source.material, corner_ids, weights, nearest.point);
+    let colour = source.material.shade(&source.blend, uv.x, uv.y);
     out[..3].copy_from_slice(&colour.to_array());
-    out[3..5].copy_from_slice(&coordinate.to_array());
+    out[3..5].copy_from_slice(&inside(source.material, uv).to_array());
     for (map, out) in source.maps.iter().zip(out[5..].chunks_exact_mut(3)) {
+        let value = map.at(uv);
         let value = match map.kind {
             MapKind::Normal => {
+                // The sample's normal turned into the world by the frames of the corners
+                // whose copy the point shows.
+                let f = &scene.frames;
                 let world: Vec3 = (0..3)
                     .map(|k| {
-                        let n = map.at(predicted[k]);
-                        let f = &scene.frames;
-                        let v = dense[k];
-                        weights[k] * (n.x * f.s[v] + n.y * f.t[v] + n.z * f.n[v])
+                        chosen[k]
+                            * (value.x * f.s[dense[k]] + value.y * f.t[dense[k]] + value.z * f.n[dense[k]])
                     })
                     .sum();
                 to_tangent_space(world, target, corners, bary)
             }
-            _ => (0..3).map(|k| weights[k] * map.at(predicted[k])).sum(),
+            _ => value,
         };
         out.copy_from_slice(&value.to_array());
     }

@@ -18,6 +18,7 @@ pub mod bake;
 pub mod gltf;
 pub mod layout;
 pub mod raster;
+pub mod read;
 pub mod textures;
 mod uvmap;
 
@@ -269,6 +270,7 @@ impl Look<'_> {
             "surface": surface.display().to_string(),
             "analysis": analysis.display().to_string(),
             "colour": {"light": light, "view": view, "note": "angles θ, φ in degrees in the sample's frame"},
+            "sampleTexel": self.scene.texel,
         })
     }
 }

@@ -70,9 +70,10 @@ impl Shading<'_> {
                 self.options.sun * self.scene.shade_point(self.material, &self.blends, Mode::Pixel, point);
         }
         if let Some(ambient) = self.ambient {
+            // Each vertex's environment patch covers its own copy: the chosen corners' only.
+            let (uv, weights) = self.scene.point_uv(self.material, corners, hit.bary, hit.position);
             for (k, &v) in corners.iter().enumerate() {
-                let v = v as usize;
-                colour += hit.bary[k] * ambient.at(v, self.scene.predict_uv(v, hit.position));
+                colour += weights[k] * ambient.at(v as usize, uv);
             }
         }
         Some(colour)

@@ -18,12 +18,22 @@ use std::path::{Path, PathBuf};
 pub enum Mode {
     /// Tong §6: a colour per vertex, interpolated across each triangle.
     Vertex,
-    /// Per pixel, each corner of the triangle predicts a sample coordinate (its own plus
-    /// the pixel's offset in its tangent frame, in texels); the three lookups are blended
-    /// by barycentric weight. Shows sample-resolution detail between vertices.
+    /// Per pixel, one lookup of the sample at the pixel's synthesized coordinate
+    /// ([`Scene::point_uv`]): each corner of the triangle predicts a coordinate (its own plus
+    /// the pixel's offset in its tangent frame, in texels); corners that agree (one copy of
+    /// the sample) are interpolated, and where they disagree (a seam between copies) the
+    /// side with the larger barycentric weight is taken whole. Shows sample-resolution detail
+    /// between vertices, crisp inside copies and with a hard cut at seams, where blending the
+    /// corners' lookups would blur and double the image.
     #[default]
     Pixel,
 }
+
+/// Corner predictions closer than this (in sample texels) show one copy of the sample and are
+/// interpolated ([`Scene::point_uv`]). Inside a copy, predictions differ by the rounding of
+/// each vertex's integer coordinate and the turn between neighbouring frames (under a texel);
+/// across a seam between copies, by many texels.
+pub const AGREE_TEXELS: f32 = 2.0;
 
 /// What the renderers draw.
 pub struct Scene {
@@ -143,6 +153,47 @@ impl Scene {
         self.uv[v] + Vec2::new(d.dot(self.frames.s[v]), -d.dot(self.frames.t[v])) / self.texel
     }
 
+    /// The sample coordinate that point `p`, with barycentric weights `bary` in the triangle
+    /// of vertices `corners`, shows: on a texture-mapped scene the corners' coordinates
+    /// interpolated; otherwise each corner's prediction ([`Scene::predict_uv`]), grouped by
+    /// agreement (within [`AGREE_TEXELS`], across the wrap of a tileable sample), the group
+    /// of the largest total weight interpolated. Inside one copy of the sample all three
+    /// agree and the coordinate runs on continuously; at a seam the cut falls where the two
+    /// sides weigh the same, which on a shared edge depends on its two vertices only, so
+    /// neighbouring triangles cut alike. Returns the coordinate and the weight each corner
+    /// had in it (zero outside the chosen group), for lookups that follow the corners' frames.
+    pub fn point_uv(&self, material: &Material, corners: [u32; 3], bary: Vec3, p: Vec3) -> (Vec2, [f32; 3]) {
+        let w = bary.to_array();
+        if self.mapped {
+            let q = (0..3).map(|k| w[k] * self.uv[corners[k] as usize]).sum();
+            return (q, w);
+        }
+        let q = corners.map(|v| self.predict_uv(v as usize, p));
+        let size = Vec2::new(material.width() as f32, material.height() as f32);
+        // The offset from a to b, across the wrap when the sample tiles.
+        let offset = |a: Vec2, b: Vec2| {
+            let d = b - a;
+            if material.tileable {
+                d - size * (d / size).round()
+            } else {
+                d
+            }
+        };
+        let agree = |i: usize, j: usize| offset(q[i], q[j]).length_squared() <= AGREE_TEXELS * AGREE_TEXELS;
+        let group_weight = |i: usize| (0..3).filter(|&j| agree(i, j)).map(|j| w[j]).sum::<f32>();
+        let lead = (0..3)
+            .max_by(|&i, &j| group_weight(i).total_cmp(&group_weight(j)).then(w[i].total_cmp(&w[j])))
+            .unwrap_or(0);
+        let mut weights = [0.0; 3];
+        let total = group_weight(lead).max(f32::MIN_POSITIVE);
+        let mut uv = q[lead];
+        for j in (0..3).filter(|&j| agree(lead, j)) {
+            weights[j] = w[j] / total;
+            uv += weights[j] * offset(q[lead], q[j]);
+        }
+        (uv, weights)
+    }
+
     /// The colour of point `p` with barycentric weights `bary` in triangle `tri`, before
     /// shadowing (see [`Mode`]).
     pub fn shade_point(
@@ -153,19 +204,20 @@ impl Scene {
         (tri, bary, p): (usize, Vec3, Vec3),
     ) -> Vec3 {
         let corners = self.mesh.triangles()[tri];
-        let mut c = Vec3::ZERO;
-        let interpolated = (self.mapped && mode == Mode::Pixel)
-            .then(|| (0..3).map(|k| bary[k] * self.uv[corners[k] as usize]).sum::<Vec2>());
-        for k in 0..3 {
-            let v = corners[k] as usize;
-            let q = match (mode, interpolated) {
-                (Mode::Vertex, _) => self.uv[v],
-                (Mode::Pixel, Some(q)) => q,
-                (Mode::Pixel, None) => self.predict_uv(v, p),
-            };
-            c += bary[k] * material.shade(&blends[v], q.x, q.y);
+        match mode {
+            Mode::Vertex => (0..3)
+                .map(|k| {
+                    let v = corners[k] as usize;
+                    bary[k] * material.shade(&blends[v], self.uv[v].x, self.uv[v].y)
+                })
+                .sum(),
+            Mode::Pixel => {
+                // One lookup at the point's coordinate; the view and light blends (smooth
+                // across the surface) still follow the corners.
+                let (q, _) = self.point_uv(material, corners, bary, p);
+                (0..3).map(|k| bary[k] * material.shade(&blends[corners[k] as usize], q.x, q.y)).sum()
+            }
         }
-        c
     }
 
     /// Per-vertex colours (Tong §6's vertex mode) under `blends`; `lit[v]` false makes a

@@ -265,3 +265,20 @@ pub fn surface(
         cache: None,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use wgpu::naga;
+
+    /// The surface shader parses and validates without an adapter (a machine without a GPU
+    /// would otherwise first find a mistake in it at run time).
+    #[test]
+    fn the_surface_shader_validates() {
+        let source = include_str!("../../../shaders/surface.wgsl");
+        let module =
+            naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+    }
+}
