@@ -146,7 +146,7 @@ fn samples(o: &Options, btfsynth: &Path) -> Result<Vec<(String, PathBuf, usize)>
     for file in files {
         let name = file.file_stem().unwrap_or_default().to_string_lossy().into_owned();
         let image = image::open(&file).map_err(|e| format!("{}: {e}", file.display()))?.to_rgb8();
-        let mut crop = |tag: &str, side: u32| -> Result<(String, PathBuf, usize)> {
+        let crop = |tag: &str, side: u32| -> Result<(String, PathBuf, usize)> {
             let (w, h) = (image.width().min(side), image.height().min(side));
             let path = o.out.join(format!("{name}-{tag}.png"));
             image::imageops::crop_imm(&image, 0, 0, w, h)
@@ -204,12 +204,12 @@ fn sample_rows(
     let mut rows = Vec::new();
     for seed in 0..o.seeds {
         let plane = dir.join(format!("btfsynth-{seed}"));
-        let size = format!("{side}x{side}");
+        let out_size = format!("{side}x{side}");
         let (ok, synth) = timed(
             Command::new(btfsynth)
                 .args(["-q", "synth"])
                 .arg(&analysis)
-                .args(["--plane", &size, "--seed", &seed.to_string(), "--force", "-o"])
+                .args(["--plane", &out_size, "--seed", &seed.to_string(), "--force", "-o"])
                 .arg(&plane),
         )?;
         ok.then_some(()).ok_or(format!("synth {name} failed"))?;
@@ -474,11 +474,11 @@ fn size_bands(rows: &[Row]) -> String {
         let at_or_below = samples
             .iter()
             .filter(|&&name| {
-                let of = |tool: &dyn Fn(&str) -> bool| {
-                    in_band.iter().filter(|r| r.sample == name && tool(&r.tool)).map(repetition)
+                let of = |tool: fn(&str) -> bool| -> Vec<f64> {
+                    in_band.iter().filter(|r| r.sample == name && tool(&r.tool)).map(repetition).collect()
                 };
-                let worst = of(&|t| t.starts_with("btfsynth")).fold(f64::NAN, f64::max);
-                of(&|t| t == "Resynthesizer").next().is_some_and(|peer| worst <= peer)
+                let worst = of(|t| t.starts_with("btfsynth")).into_iter().fold(f64::NAN, f64::max);
+                of(|t| t == "Resynthesizer").first().is_some_and(|&peer| worst <= peer)
             })
             .count();
         let _ = writeln!(
