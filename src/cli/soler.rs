@@ -112,7 +112,8 @@ pub fn run(common: Common, args: &SolerArgs, bars: &Bars) -> Result<()> {
     // The mesh and the size are checked before the sample is read: nothing is worked on
     // that a bound then refuses.
     let mesh = btfsynth::mesh::textured::load_textured(common.mesh)?;
-    let texels_per_unit = texels_per_unit(&mesh.positions, common.scale, common.texels_across, w, common.mesh)?;
+    let texels_per_unit =
+        texels_per_unit(&mesh.positions, common.scale, common.texels_across, w, common.mesh)?;
     let params = SolerParams {
         texels_per_unit,
         rotations: args.rotations,
