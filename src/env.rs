@@ -9,7 +9,7 @@
 //! - `BTFSYNTH_GPU_MEMORY`: the GPU memory limit (`render::gpu::memory::limit`).
 //! - `WGPU_BACKEND`: the wgpu backends tried ([`wgpu_backends`]).
 
-use crate::{Error, Result};
+use crate::Result;
 
 /// Parses every variable of the module's list that is set; the first bad one is the error.
 pub fn check() -> Result<()> {
@@ -36,7 +36,7 @@ pub fn wgpu_backends() -> Result<Option<wgpu::Backends>> {
     if text.split(',').all(|name| KNOWN.contains(&name.trim().to_lowercase().as_str())) {
         return Ok(Some(wgpu::Backends::from_comma_list(&text)));
     }
-    Err(Error::invalid(format!(
+    Err(crate::Error::invalid(format!(
         "{NAME}='{text}': expected backend names separated by commas: vulkan, gl, metal, dx12, webgpu"
     )))
 }

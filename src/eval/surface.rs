@@ -451,10 +451,8 @@ mod tests {
         let mut atlas = sample.clone();
         let mut covered = vec![true; 96 * 96];
         // A gutter of black texels: not on the surface, not counted.
-        for i in 0..96 * 20 {
-            atlas.rgb[i] = [0.0; 3];
-            covered[i] = false;
-        }
+        atlas.rgb[..96 * 20].fill([0.0; 3]);
+        covered[..96 * 20].fill(false);
         let f = texture_figures(&atlas, &covered, &sample, 1.0, true);
         assert!(f.colour_shift < 0.05 && (f.contrast - 1.0).abs() < 0.1, "{f:?}");
         // A flat quarter: about a quarter of the windows smeared.

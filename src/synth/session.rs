@@ -263,7 +263,8 @@ mod tests {
         super::super::Sample::from_analysis(&analysis, &stack, 2).unwrap().manifest
     }
 
-    /// Each refusal names its parameter; a good session takes the analysis' k and levels.
+    /// Each refusal names its parameter; a good session takes the analysis' k and the levels
+    /// whose coarsest is large enough for the neighbourhood.
     #[test]
     fn a_session_refuses_what_the_analysis_or_the_preset_cannot_run() {
         let m = manifest();
@@ -274,11 +275,13 @@ mod tests {
         assert_eq!(param(SynthSessionBuilder::new().levels(3)), Some(Param::Levels));
         assert_eq!(param(SynthSessionBuilder::new().levels(0)), Some(Param::Levels));
         assert_eq!(param(SynthSessionBuilder::new().k(6)), Some(Param::K));
-        assert_eq!(param(SynthSessionBuilder::new().neighbourhood(13)), Some(Param::Neighbourhood));
+        assert_eq!(param(SynthSessionBuilder::new().neighbourhood(13).levels(2)), Some(Param::Neighbourhood));
         let chen = SynthSessionBuilder::new().preset(Preset::chen2008()).search(SearchChoice::Full).build(&m);
         assert!(matches!(chen, Err(Error::IncompatibleSearch { .. })), "{chen:?}");
+        // 24² has a 12² second level, under the 22² a 5² neighbourhood wants: one level.
         let session = SynthSessionBuilder::new().build(&m).unwrap();
-        assert_eq!((session.levels(), session.params().search), (2, Search::KCoherence { k: 5 }));
+        assert_eq!((session.levels(), session.params().search), (1, Search::KCoherence { k: 5 }));
+        assert_eq!(SynthSessionBuilder::new().levels(2).build(&m).unwrap().levels(), 2);
         assert_eq!(session.provenance()["search"], "kcoherence");
     }
 }

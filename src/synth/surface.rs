@@ -1,7 +1,7 @@
 //! Targets on a triangle mesh (Tong et al. 2002 §5.1, Fig. 4; §5.2): per vertex, the
 //! triangles around it are flattened into its (s, t) plane, the square neighbourhood
 //! template is resampled from that patch (each pixel the texton of the nearest corner of
-//! the face it falls in, where Tong et al. blend the three: see [`nearest_corner`]), and the
+//! the face it falls in, where Tong et al. blend the three: see `nearest_corner`), and the
 //! patch vertices inside the template become the forward shifts of the k-coherence
 //! candidate set.
 //!
