@@ -26,7 +26,7 @@
 // another of its colour, so it is written straight into `state`) and `apply_counts` (the
 // choosy use counts move, once every vertex of the sub-pass has chosen).
 
-const PAD: i32 = 8;              // AppearanceMap::PAD
+const PAD: i32 = 31;             // AppearanceMap::PAD
 const KEY: u32 = 0x1fffffffu;    // texel + 1 in a slot
 const LISTED: u32 = 0x20000000u; // a shift pixel whose list was gathered
 const CANDIDATE: u32 = 0x40000000u;

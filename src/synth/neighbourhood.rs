@@ -5,7 +5,6 @@
 //! the one place a flat combination is checked; [`Neighbourhood::parts`] writes it back.
 
 use super::round::RoundStencil;
-use super::sample::AppearanceMap;
 
 /// The circles a mesh level is marched for under [`Stencil::Isotropic`]: its two rings.
 pub const ISOTROPIC_MARCHED: RoundStencil = RoundStencil { circles: 2 };
@@ -32,10 +31,7 @@ pub enum MetricKind {
     Adaptive,
 }
 
-/// The most circles a round neighbourhood may have: the sample's appearance maps keep a
-/// border of [`AppearanceMap::PAD`] texels, and the round resampling reads one texel beyond
-/// the outer circle (bilinear), so `circles + 1` must fit in it.
-pub const MAX_CIRCLES: usize = AppearanceMap::PAD - 1;
+pub use super::round::MAX_CIRCLES;
 
 /// The shape of a pass's own-level neighbourhood: which offsets around a vertex it reads.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

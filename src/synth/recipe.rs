@@ -216,9 +216,7 @@ impl Pass {
     fn value_problem(&self) -> Option<String> {
         if let Neighbourhood::Round { circles, .. } = self.neighbourhood {
             if !(1..=MAX_CIRCLES).contains(&circles) {
-                return Some(format!(
-                    "a Round stencil has 1 to {MAX_CIRCLES} circles (the sample's border holds circles + 1 texels), not {circles}"
-                ));
+                return Some(format!("a Round stencil has 1 to {MAX_CIRCLES} circles, not {circles}"));
             }
         }
         match self.select {

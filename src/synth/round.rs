@@ -31,6 +31,13 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::f32::consts::TAU;
 
+/// The most circles a round neighbourhood may have: Chen and Dong use 3; 7 was the most
+/// the appearance maps' first border of 8 texels held, and wider round neighbourhoods have
+/// not been measured since. The round resampling reads one texel beyond the outer circle
+/// (bilinear), so `circles + 1` must fit in the maps' border of [`AppearanceMap::PAD`].
+pub const MAX_CIRCLES: usize = 7;
+const _: () = assert!(MAX_CIRCLES < AppearanceMap::PAD);
+
 /// Points on the first circle; circle c holds `c` times as many.
 pub const POINTS_PER_CIRCLE: usize = 8;
 
@@ -459,8 +466,8 @@ pub struct RoundSample {
 impl RoundSample {
     /// Resamples `map` (a `width × height` level; its border supplies texels past the edge).
     pub fn new(map: &AppearanceMap, width: usize, height: usize, stencil: RoundStencil) -> Result<Self> {
-        if stencil.circles + 1 > AppearanceMap::PAD {
-            return Err(Error::invalid(format!("at most {} circles", AppearanceMap::PAD - 1)));
+        if stencil.circles > MAX_CIRCLES {
+            return Err(Error::invalid(format!("at most {MAX_CIRCLES} circles")));
         }
         let offsets = layout_offsets(&stencil.layout());
         let dims = map.dims;

@@ -49,8 +49,10 @@ pub struct AppearanceMap {
 }
 
 impl AppearanceMap {
-    /// Border kept around the map: enough for templates up to 2·PAD + 1 texels wide.
-    pub const PAD: usize = 8;
+    /// Border kept around the map: enough for templates up to 2·PAD + 1 texels wide, the
+    /// 63 texels the CLI and recipes accept (one level may be the whole synthesis, so a
+    /// wide template meets the map on its finest level too).
+    pub const PAD: usize = 31;
 
     /// From `[pixels][dims]` vectors of a `width × height` level.
     pub fn new(width: usize, height: usize, dims: usize, vectors: &[f32], tileable: bool) -> Self {

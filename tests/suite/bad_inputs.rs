@@ -136,7 +136,8 @@ fn nan_and_out_of_range_arrays_are_refused_naming_the_file() {
     let analysis = common::analyze_gravel_crop(dir.path(), "a");
     let cases: [Damage; 6] = [
         ("nan-appearance", "level0_appearance.npy", |d| d[5] = f32::NAN),
-        ("inf-gamma", "level1_gamma.npy", |d| d[1] = f32::INFINITY),
+        // Level 0: the one a 16x16 plane uses by default (a level not in use is not read).
+        ("inf-gamma", "level0_gamma.npy", |d| d[1] = f32::INFINITY),
         ("nan-embedding", "level0_embedding.npy", |d| d[0] = f32::NAN),
         ("nan-images", "images.npy", |d| d[7] = f32::NAN),
         ("nan-direction", "directions.npy", |d| d[0] = f32::NAN),

@@ -151,12 +151,16 @@ fn every_value_has_a_range_checked_before_any_work() {
         (vec!["analyze", texture, "--appearance-dims", "100000", "-o", o], "--appearance-dims"),
         (vec!["analyze", texture, "--basis", "100000", "-o", o], "--basis"),
         (vec!["synth", a, "--plane", "16x16", "--neighborhood", "10001", "-o", o], "--neighborhood"),
-        // The analysis' coarsest level is 24x24 texels.
-        (vec!["synth", a, "--plane", "16x16", "--neighborhood", "25", "-o", o], "--neighborhood 25"),
+        // The analysis' second level is 24x24 texels.
         (
-            vec!["synth", a, BUNNY, "--neighborhood", "25", "--preset", "turk2001", "-o", p],
+            vec!["synth", a, "--plane", "16x16", "--levels", "2", "--neighborhood", "25", "-o", o],
             "--neighborhood 25",
         ),
+        (
+            vec!["synth", a, BUNNY, "--levels", "2", "--neighborhood", "25", "--preset", "turk2001", "-o", p],
+            "--neighborhood 25",
+        ),
+        (vec!["synth", a, "--plane", "16x16", "--neighborhood", "49", "-o", o], "--neighborhood 49"),
         (vec!["synth", a, "--plane", "100000x100000", "-o", o], "--plane"),
         (vec!["synth", a, BUNNY, "--orient", "axis:0,0,0", "-o", p], "--orient"),
         (vec!["synth", a, BUNNY, "--orient", "axis:nan,0,0", "-o", p], "--orient"),
@@ -175,6 +179,15 @@ fn every_value_has_a_range_checked_before_any_work() {
         assert!(started.elapsed().as_secs() < 30, "{args:?} is refused at once");
     }
     assert!(!out.exists() && !ply.exists(), "nothing written");
+    // As wide as the one level in use allows, or as the CLI allows: a synthesis.
+    for n in ["47", "63"] {
+        let crop = if n == "47" { "0,0,48,48" } else { "0,0,64,64" };
+        let wide = common::analyze_gravel(dir.path(), &format!("wide{n}"), crop);
+        let args = ["-q", "synth", wide.to_str().unwrap(), "--plane", "16x16", "--levels", "1"];
+        let r = btfsynth(&[&args[..], &["--neighborhood", n, "-o", o]].concat());
+        assert!(r.status.success(), "--neighborhood {n}: {}", String::from_utf8_lossy(&r.stderr));
+        let _ = std::fs::remove_dir_all(&out).or_else(|_| std::fs::remove_file(&out));
+    }
 }
 
 #[test]

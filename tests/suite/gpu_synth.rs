@@ -224,8 +224,9 @@ fn synth_device_auto_without_a_hardware_adapter_runs_on_the_cpu_and_says_so() {
 }
 
 /// On a mesh, `appearance` (appearance SSD over blended template pixels) and `tong2002` (Γ
-/// over blended textons, with the parent template; under k-coherence, whose pixel costs are
-/// computed side by side, and a full search, whose are not), with forward shifts from stored
+/// over blended textons, with the parent template on two levels; under k-coherence, whose
+/// pixel costs are computed side by side, and a full search, whose are not, on one level
+/// too: 1,764 candidates, more than one score dispatch takes), with forward shifts from stored
 /// patch vertices, run on the GPU and write the CPU's PLY byte for byte, and the same
 /// per-level figures to the bit; `turk2001`'s sequential sweep has no GPU form, so its
 /// levels run on the CPU and the report says why.
@@ -237,10 +238,19 @@ fn synth_device_gpu_on_a_mesh_writes_the_cpus_bytes_where_the_passes_have_a_gpu_
     }
     let dir = tempfile::tempdir().unwrap();
     let analysis = common::analyze_gravel(dir.path(), "gravel", "0,0,48,48");
-    let run = |preset: &str, search: &str, device: &str| {
-        let out = dir.path().join(format!("{preset}-{search}-{device}.ply"));
-        let report = dir.path().join(format!("{preset}-{search}-{device}.json"));
-        let args = ["-q", "synth", analysis.to_str().unwrap(), common::BUNNY, "--vertices", "900"];
+    let run = |preset: &str, search: &str, levels: &str, device: &str| {
+        let out = dir.path().join(format!("{preset}-{search}-{levels}-{device}.ply"));
+        let report = dir.path().join(format!("{preset}-{search}-{levels}-{device}.json"));
+        let args = [
+            "-q",
+            "synth",
+            analysis.to_str().unwrap(),
+            common::BUNNY,
+            "--vertices",
+            "900",
+            "--levels",
+            levels,
+        ];
         let more = ["--preset", preset, "--search", search, "--seed", "2", "--device", device];
         let paths = ["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()];
         let r = common::btfsynth(&[&args[..], &more, &paths].concat());
@@ -252,15 +262,16 @@ fn synth_device_gpu_on_a_mesh_writes_the_cpus_bytes_where_the_passes_have_a_gpu_
         report["levels"].as_array().unwrap().clone()
     };
     let cases = [
-        ("appearance", "kcoherence", true),
-        ("tong2002", "kcoherence", true),
-        ("tong2002", "full", true),
-        ("turk2001", "kcoherence", false),
+        ("appearance", "kcoherence", "2", true),
+        ("tong2002", "kcoherence", "2", true),
+        ("tong2002", "full", "2", true),
+        ("tong2002", "full", "1", true),
+        ("turk2001", "kcoherence", "2", false),
     ];
-    for (preset, search, on_gpu) in cases {
-        let (cpu, cpu_out, cpu_report) = run(preset, search, "cpu");
+    for (preset, search, depth, on_gpu) in cases {
+        let (cpu, cpu_out, cpu_report) = run(preset, search, depth, "cpu");
         assert!(cpu.status.success(), "{}", String::from_utf8_lossy(&cpu.stderr));
-        let (gpu, gpu_out, report) = run(preset, search, "gpu");
+        let (gpu, gpu_out, report) = run(preset, search, depth, "gpu");
         let stderr = String::from_utf8_lossy(&gpu.stderr);
         if !gpu.status.success() && btfsynth::testdata::gpu_missing(TEST, &stderr) {
             return;
@@ -268,7 +279,7 @@ fn synth_device_gpu_on_a_mesh_writes_the_cpus_bytes_where_the_passes_have_a_gpu_
         assert!(gpu.status.success(), "{stderr}");
         assert!(
             std::fs::read(cpu_out).unwrap() == std::fs::read(gpu_out).unwrap(),
-            "{preset}: the PLYs differ"
+            "{preset} {search} on {depth} level(s): the PLYs differ"
         );
         let (cpu_levels, gpu_levels) = (levels(&cpu_report), levels(&report));
         assert_eq!(cpu_levels.len(), gpu_levels.len());

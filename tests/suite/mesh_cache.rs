@@ -27,6 +27,8 @@ fn synth(
         "chen2008",
         "--vertices",
         "3000",
+        "--levels",
+        "2",
         "--orient",
         orient,
         "-o",
@@ -150,7 +152,7 @@ fn remeshings_and_templates_are_read_back_by_runs_that_share_them() {
     assert!(!cache.exists());
     let run = |name: &str, seed: &str, cached: bool| {
         let (out, report) = (dir.path().join(format!("{name}.ply")), dir.path().join(format!("{name}.json")));
-        let mut args = vec!["synth", a, BUNNY, "--vertices", "3000", "--seed", seed];
+        let mut args = vec!["synth", a, BUNNY, "--vertices", "3000", "--levels", "2", "--seed", seed];
         args.extend(["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()]);
         if cached {
             args.extend(["--cache", cache.to_str().unwrap()]);

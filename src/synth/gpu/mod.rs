@@ -44,8 +44,10 @@ use std::sync::OnceLock;
 /// Words of a mesh's template pixel in the shader's tables: three vertices, three weights.
 const SLOT_WORDS: usize = 6;
 
-/// Widest template: the appearance maps' border holds 2 · PAD + 1.
-const MAX_TEMPLATE: usize = 2 * AppearanceMap::PAD + 1;
+/// Widest template the shader takes (wider ones run on the CPU): 17 texels, the width the
+/// shader's tables were sized and measured for; the appearance maps' border holds it.
+const MAX_TEMPLATE: usize = 17;
+const _: () = assert!(MAX_TEMPLATE <= 2 * AppearanceMap::PAD + 1);
 
 /// Distinct shift texels and candidates of one vertex the smallest table holds: a plane's
 /// 5 × 5 window with 11 candidates each, and more.
@@ -68,7 +70,12 @@ const HARDWARE_SCRATCH: u64 = 512 << 20;
 /// Loop iterations one score dispatch may spend per invocation: Mesa's llvmpipe (lavapipe)
 /// ends every loop of an invocation once they have run 65535 iterations in all
 /// (`LP_MAX_TGSI_LOOP_ITERATIONS`), so candidates are scored in batches that stay below.
-const LOOP_BUDGET: usize = 48_000;
+/// Half of 48,000, which our estimate of a candidate's iterations let through on a mesh's
+/// full search of 1,156 or more candidates (a one-level synthesis of a 40² sample): the
+/// GPU then chose other texels than the CPU. The hash probes and the SIMD lanes' longest
+/// loops are not in the estimate; at 24,000 every size measured (up to 96², 8,100
+/// candidates, mesh and plane, Γ and appearance) gives the CPU's bytes.
+const LOOP_BUDGET: usize = 24_000;
 
 /// Bytes of each sub-pass's parameters in the uniform buffer (its dynamic offsets' alignment).
 const PARAMS_STRIDE: u64 = 256;
@@ -1068,6 +1075,13 @@ mod tests {
     use super::*;
     use crate::synth::engine::tests::periodic_sample;
     use crate::synth::engine::Usage;
+
+    /// The shader indexes the appearance maps with its own copy of their border.
+    #[test]
+    fn the_shaders_map_border_is_the_maps() {
+        let source = include_str!("../../../shaders/synth_pass.wgsl");
+        assert!(source.contains(&format!("const PAD: i32 = {};", AppearanceMap::PAD)));
+    }
 
     /// The table the shader reads is the CPU's fair-share factor for every use count.
     #[test]
