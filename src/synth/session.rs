@@ -26,6 +26,7 @@
 //! # Ok::<(), btfsynth::Error>(())
 //! ```
 
+use super::sample::AppearanceMap;
 use super::{Device, Preset, Search, SynthParams};
 use crate::analysis::store::Manifest;
 use crate::error::{Param, Remedy};
@@ -176,9 +177,15 @@ pub fn default_levels(manifest: &Manifest, n: usize) -> usize {
     (1..=manifest.levels.len()).rev().find(|&l| side(l) >= coarsest_side_for(n)).unwrap_or(1)
 }
 
-/// Refuses a neighbourhood larger than the coarsest level in use: no sample texel there
-/// would have a whole neighbourhood to copy.
+/// Refuses a neighbourhood that is even, narrower than 3 or wider than the appearance maps'
+/// border holds (63), or larger than the coarsest level in use: no sample texel there would
+/// have a whole neighbourhood to copy.
 fn check_neighbourhood(n: usize, manifest: &Manifest, levels: usize) -> Result<()> {
+    let widest = 2 * AppearanceMap::PAD + 1;
+    if n % 2 == 0 || !(3..=widest).contains(&n) {
+        let message = format!("must be odd, from 3 to {widest}");
+        return Err(Error::out_of_range(Param::Neighbourhood, n, message));
+    }
     let Some(coarsest) = manifest.levels.get(levels - 1) else { return Ok(()) };
     let side = coarsest.width.min(coarsest.height);
     if n <= side {
@@ -276,6 +283,9 @@ mod tests {
         assert_eq!(param(SynthSessionBuilder::new().levels(0)), Some(Param::Levels));
         assert_eq!(param(SynthSessionBuilder::new().k(6)), Some(Param::K));
         assert_eq!(param(SynthSessionBuilder::new().neighbourhood(13).levels(2)), Some(Param::Neighbourhood));
+        for n in [0, 1, 4, 65] {
+            assert_eq!(param(SynthSessionBuilder::new().neighbourhood(n)), Some(Param::Neighbourhood), "{n}");
+        }
         let chen = SynthSessionBuilder::new().preset(Preset::chen2008()).search(SearchChoice::Full).build(&m);
         assert!(matches!(chen, Err(Error::IncompatibleSearch { .. })), "{chen:?}");
         // 24² has a 12² second level, under the 22² a 5² neighbourhood wants: one level.
