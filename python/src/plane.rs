@@ -28,11 +28,12 @@ impl Choices<'_> {
     /// The session, built as `btfsynth synth` builds it (on the CPU: the package has no GPU
     /// passes, whose results are the same bytes).
     pub fn session(&self, py: Python<'_>, data: &AnalysisData) -> PyResult<SynthSession> {
-        if !(3..=63).contains(&self.neighborhood) || self.neighborhood % 2 == 0 {
+        let widest = btfsynth::synth::session::MAX_NEIGHBOURHOOD;
+        if !(3..=widest).contains(&self.neighborhood) || self.neighborhood % 2 == 0 {
             return Err(value_error(
                 py,
                 "neighborhood",
-                format!("{}: expected an odd whole number from 3 to 63", self.neighborhood),
+                format!("{}: expected an odd whole number from 3 to {widest}", self.neighborhood),
             ));
         }
         let preset = match &self.recipe {

@@ -204,8 +204,9 @@ pub(crate) fn positive_number(s: &str) -> Result<f32, String> {
     }
 }
 
-/// The largest neighbourhood side any flag accepts; the sample's levels bound it further.
-pub(crate) const MAX_NEIGHBOURHOOD: usize = 63;
+/// The largest neighbourhood side any flag accepts (the synthesis' widest); the sample's
+/// levels bound it further.
+pub(crate) const MAX_NEIGHBOURHOOD: usize = btfsynth::synth::session::MAX_NEIGHBOURHOOD;
 
 /// A parser for the side of a square neighbourhood: odd, from 3 to [`MAX_NEIGHBOURHOOD`].
 pub(crate) fn odd_side(s: &str) -> Result<usize, String> {

@@ -177,13 +177,15 @@ pub fn default_levels(manifest: &Manifest, n: usize) -> usize {
     (1..=manifest.levels.len()).rev().find(|&l| side(l) >= coarsest_side_for(n)).unwrap_or(1)
 }
 
-/// Refuses a neighbourhood that is even, narrower than 3 or wider than the appearance maps'
-/// border holds (63), or larger than the coarsest level in use: no sample texel there would
-/// have a whole neighbourhood to copy.
+/// The widest neighbourhood a synthesis takes: what the appearance maps' border holds.
+pub const MAX_NEIGHBOURHOOD: usize = 2 * AppearanceMap::PAD + 1;
+
+/// Refuses a neighbourhood that is even, narrower than 3 or wider than
+/// [`MAX_NEIGHBOURHOOD`], or larger than the coarsest level in use: no sample texel there
+/// would have a whole neighbourhood to copy.
 fn check_neighbourhood(n: usize, manifest: &Manifest, levels: usize) -> Result<()> {
-    let widest = 2 * AppearanceMap::PAD + 1;
-    if n % 2 == 0 || !(3..=widest).contains(&n) {
-        let message = format!("must be odd, from 3 to {widest}");
+    if n % 2 == 0 || !(3..=MAX_NEIGHBOURHOOD).contains(&n) {
+        let message = format!("must be odd, from 3 to {MAX_NEIGHBOURHOOD}");
         return Err(Error::out_of_range(Param::Neighbourhood, n, message));
     }
     let Some(coarsest) = manifest.levels.get(levels - 1) else { return Ok(()) };

@@ -180,8 +180,7 @@ fn every_value_has_a_range_checked_before_any_work() {
     }
     assert!(!out.exists() && !ply.exists(), "nothing written");
     // As wide as the one level in use allows, or as the CLI allows: a synthesis.
-    for n in ["47", "63"] {
-        let crop = if n == "47" { "0,0,48,48" } else { "0,0,64,64" };
+    for (n, crop) in [("47", "0,0,48,48"), ("63", "0,0,64,64")] {
         let wide = common::analyze_gravel(dir.path(), &format!("wide{n}"), crop);
         let args = ["-q", "synth", wide.to_str().unwrap(), "--plane", "16x16", "--levels", "1"];
         let r = btfsynth(&[&args[..], &["--neighborhood", n, "-o", o]].concat());

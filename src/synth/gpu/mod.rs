@@ -44,8 +44,8 @@ use std::sync::OnceLock;
 /// Words of a mesh's template pixel in the shader's tables: three vertices, three weights.
 const SLOT_WORDS: usize = 6;
 
-/// Widest template the shader takes (wider ones run on the CPU): 17 texels, the width the
-/// shader's tables were sized and measured for; the appearance maps' border holds it.
+/// Widest template the shader takes (wider ones run on the CPU): 17 texels, the widest
+/// the GPU passes have been checked against the CPU with (the maps' border was 8 then).
 const MAX_TEMPLATE: usize = 17;
 const _: () = assert!(MAX_TEMPLATE <= 2 * AppearanceMap::PAD + 1);
 
