@@ -91,7 +91,8 @@ pub struct SynthArgs {
     /// so that a small sample is not copied whole on a lattice).
     #[arg(long, value_parser = super::at_least(1))]
     levels: Option<usize>,
-    /// Side of the square neighbourhood template (odd, at least 3).
+    /// Side of the square neighbourhood template (odd, 3 to 63; at most the coarsest level in
+    /// use a side).
     #[arg(long, default_value_t = 7, value_parser = super::odd_side)]
     neighborhood: usize,
     /// Candidate search.
