@@ -25,9 +25,9 @@ pub struct Choices<'py> {
 }
 
 impl Choices<'_> {
-    /// The session, built as `btfsynth synth` builds it (on the CPU: the package has no GPU
-    /// passes, whose results are the same bytes).
-    pub fn session(&self, py: Python<'_>, data: &AnalysisData) -> PyResult<SynthSession> {
+    /// The session, built as `btfsynth synth` builds it for a plane or, with `surface`, a
+    /// mesh (on the CPU: the package has no GPU passes, whose results are the same bytes).
+    pub fn session(&self, py: Python<'_>, data: &AnalysisData, surface: bool) -> PyResult<SynthSession> {
         let widest = btfsynth::synth::session::MAX_NEIGHBOURHOOD;
         if !(3..=widest).contains(&self.neighborhood) || self.neighborhood % 2 == 0 {
             return Err(value_error(
@@ -55,7 +55,8 @@ impl Choices<'_> {
             .neighbourhood(self.neighborhood)
             .seed(self.seed)
             .device(Device::Cpu)
-            .search(search);
+            .search(search)
+            .surface(surface);
         if let Some(levels) = self.levels {
             builder = builder.levels(levels);
         }
@@ -206,7 +207,7 @@ pub fn synthesize_plane<'py>(
     let data = analysis.get().data.clone();
     let (height, width) = size;
     let choices = Choices { preset, recipe, seed, levels, k, neighborhood, search };
-    let session = choices.session(py, &data)?;
+    let session = choices.session(py, &data, false)?;
     let provenance = session.provenance();
     let shared = data.clone();
     let mut result = long::run(py, progress.as_ref(), move |hook| {

@@ -250,7 +250,7 @@ pub fn synthesize_surface<'py>(
     };
     let orientation = Orientation::parse(orient).map_err(|e| value_error(py, "orient", e))?;
     let choices = Choices { preset, recipe, seed, levels, k, neighborhood, search };
-    let session = choices.session(py, &data)?;
+    let session = choices.session(py, &data, true)?;
     let mut provenance = session.provenance();
     provenance["orient"] = orient.into();
     provenance["density"] = density.to_string().into();

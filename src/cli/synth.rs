@@ -86,9 +86,12 @@ pub struct SynthArgs {
     /// Candidates per kNN list (at most the analysis' k; default: the analysis' k).
     #[arg(long, value_parser = super::at_least(1))]
     k: Option<usize>,
-    /// Pyramid levels to use (at most the analysis' levels; default: as many as keep the
-    /// coarsest level at least 4n + 2 texels a side for an n×n --neighborhood, 30 for 7×7,
-    /// so that a small sample is not copied whole on a lattice).
+    /// Pyramid levels to use (at most the analysis' levels). Default on a plane: as many as
+    /// keep the coarsest level at least 4n + 2 texels a side for an n×n --neighborhood, 30
+    /// for 7×7, so that a small sample is not copied whole on a lattice. Default on a mesh:
+    /// one for presets that start from patches (all but turk2001, chen2008 and
+    /// castellanos), whose passes then only mend the patches' seams; more levels smear a
+    /// mesh's texture (docs/surfaces.md).
     #[arg(long, value_parser = super::at_least(1))]
     levels: Option<usize>,
     /// Side of the square neighbourhood template (odd, 3 to 63; at most the coarsest level in
@@ -244,6 +247,7 @@ pub fn run(args: SynthArgs, bars: &Bars) -> Result<()> {
         SearchKind::Kcoherence => SearchChoice::KCoherence,
         SearchKind::Full => SearchChoice::Full,
     });
+    session = session.surface(args.mesh.is_some());
     if let Some(levels) = args.levels {
         session = session.levels(levels);
     }
