@@ -48,7 +48,7 @@ fn main() -> btfsynth::Result<()> {
 
     let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/bunny-1k8.obj");
     let mesh = btfsynth::mesh::load(&bunny)?;
-    let pyramid = build_pyramid(&mesh, Density::Vertices(8_000), 2, &Orientation::Smooth, &synth, &Silent)?;
+    let pyramid = build_pyramid(&mesh, Density::Vertices(8_000), 1, &Orientation::Smooth, &synth, &Silent)?;
     let (state, _) = synthesize_surface(&pyramid, &sample, &synth, &Silent)?;
     let scene = Scene::from_surface_map(SurfaceMap::from_synthesis(&pyramid.levels[0], &state));
     println!("surface: {} vertices on {}", scene.mesh.vertex_count(), bunny.display());

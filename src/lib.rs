@@ -37,9 +37,10 @@
 //! let [u, v] = plane.state.uv[0];
 //! assert!((0..32).contains(&u) && (0..32).contains(&v));
 //!
-//! // A mesh: the same per vertex of a remeshed pyramid, then a render and a glTF.
+//! // A mesh: the same per vertex of a remeshed pyramid (one level, the CLI's default on a
+//! // mesh: the patches carry the structure), then a render and a glTF.
 //! let bunny = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/bunny-1k8.obj");
-//! let pyramid = build_pyramid(&btfsynth::mesh::load(&bunny)?, Density::Vertices(3_000), 2, &Orientation::Smooth, &synth, &Silent)?;
+//! let pyramid = build_pyramid(&btfsynth::mesh::load(&bunny)?, Density::Vertices(3_000), 1, &Orientation::Smooth, &synth, &Silent)?;
 //! let (state, _) = synthesize_surface(&pyramid, &sample, &synth, &Silent)?;
 //! let scene = Scene::from_surface_map(SurfaceMap::from_synthesis(&pyramid.levels[0], &state));
 //! let material = Material::from_btf(&stack)?;
