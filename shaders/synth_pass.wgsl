@@ -41,7 +41,7 @@ struct Params {
     // The target grid.
     grid_w: u32, grid_h: u32, side: u32, wraps: u32,
     // The sample level.
-    sw: u32, sh: u32, tileable: u32, radius: u32,
+    sw: u32, sh: u32, tileable: u32, margin: u32,
     list_k: u32, list_stride: u32, metric: u32, dims: u32,
     map_stride: u32, textons: u32, parent: u32, p_side: u32,
     // The parent: its grid, its sample level.
@@ -132,7 +132,7 @@ fn grid_vertex(x: i32, y: i32, w: u32, h: u32, wraps: u32) -> i32 {
 
 fn inside_band(v: i32, n: u32) -> bool {
     let ni = i32(n);
-    let r = min(i32(P.radius), (ni - 1) / 2);
+    let r = min(i32(P.margin), (ni - 1) / 2);
     return v >= r && v < ni - r;
 }
 
@@ -145,7 +145,7 @@ fn is_candidate(x: i32, y: i32) -> bool {
 fn candidate_pixel(x: i32, y: i32) -> u32 {
     let w = i32(P.sw);
     let h = i32(P.sh);
-    let r = i32(P.radius);
+    let r = i32(P.margin);
     var cx: i32;
     var cy: i32;
     if (P.tileable != 0u) {

@@ -154,10 +154,11 @@ impl IsoSample {
         IsoSample { dims, values, eigen: OnceLock::new() }
     }
 
-    /// The eigenvector transform of `sample`'s candidate texels (this level's), built once.
-    pub fn eigen(&self, sample: &SampleLevel) -> &Eigen {
+    /// The eigenvector transform of `sample`'s candidate texels (this level's, `margin` inside
+    /// its edges), built once.
+    pub fn eigen(&self, sample: &SampleLevel, margin: usize) -> &Eigen {
         self.eigen.get_or_init(|| {
-            let texels = super::candidates::full_candidates(sample, REACH);
+            let texels = super::candidates::full_candidates(sample, margin);
             Eigen::new(texels, sample.width * sample.height, self.dims, |q| self.at(q))
         })
     }
@@ -498,7 +499,7 @@ pub fn isotropic_pass(
     // refuses others; an interleaved level without a colouring runs sequentially too).
     let sequential = matches!(schedule, Schedule::Order(_));
     let trees = (search == Search::KdTrees && sequential)
-        .then(|| Mutex::new(UseTrees::new(iso.sample.eigen(sample))));
+        .then(|| Mutex::new(UseTrees::new(iso.sample.eigen(sample, level.candidate_margin(REACH)))));
     let search = if search == Search::KdTrees && !sequential { Search::Full } else { search };
     let make = || {
         let matcher = IsoMatch::new(iso, sample, map);
@@ -651,7 +652,7 @@ mod tests {
             let turns = Turns::zeros(side * side);
             let target = RoundTarget::Grid { width: side, height: side, wraps: false };
             let level = IsoLevel { target, sample: IsoSample::new(&map, w, sample.height), turns: &turns };
-            let eigen = level.sample.eigen(&sample);
+            let eigen = level.sample.eigen(&sample, REACH);
             assert!(eigen.captured > 0.8, "{photo}: 20 components hold {} of the variance", eigen.captured);
             let all = eigen.texels().to_vec();
             let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(5);

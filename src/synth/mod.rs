@@ -171,6 +171,7 @@ pub fn synthesize(
             let started = Instant::now();
             let recipe = if l == coarsest { &preset.coarsest } else { &preset.finer };
             let (target, level_sample) = (&targets[l], &levels[l]);
+            let margin = target.candidate_margin(r);
             let coarse = state.take();
             let mut turns = None;
             let mut current = match (recipe.start, &coarse) {
@@ -178,20 +179,20 @@ pub fn synthesize(
                     let inherited = match coarse_turns.take() {
                         Some(coarse_turns) => {
                             let (inherited, level_turns) =
-                                isotropic::inherit(target, coarse, &coarse_turns, level_sample, r);
+                                isotropic::inherit(target, coarse, &coarse_turns, level_sample, margin);
                             turns = Some(level_turns);
                             inherited
                         }
-                        None => start::inherit(target, coarse, level_sample, r),
+                        None => start::inherit(target, coarse, level_sample, margin),
                     };
                     match recipe.start {
                         Start::Jittered { texels } => {
-                            start::jitter(inherited, level_sample, r, texels, rng.random())
+                            start::jitter(inherited, level_sample, margin, texels, rng.random())
                         }
                         _ => inherited,
                     }
                 }
-                (Start::Random, _) => start::random_state(target, level_sample, r, &mut rng),
+                (Start::Random, _) => start::random_state(target, level_sample, margin, &mut rng),
                 (Start::Patches { radius }, _) => {
                     // A patch narrower than the template is all seam: the templates that judge
                     // its placement mostly see its neighbours (and a small periodic sample's
@@ -204,7 +205,7 @@ pub fn synthesize(
                     );
                     let k = search.list_length(level_sample);
                     let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
-                    patches(metric, target, level_sample, (r, patch, k), &mut rng)?
+                    patches(metric, target, level_sample, (margin, patch, k), &mut rng)?
                 }
                 (Start::Inherit | Start::Jittered { .. }, None) => {
                     unreachable!("checked above: the coarsest level does not inherit")

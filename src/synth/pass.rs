@@ -120,13 +120,13 @@ pub fn run_pass<V: VertexMatch>(
 ) -> PassStats {
     let pass = PassInputs::new(level, sample, plan, matcher.reach());
     let mut usage =
-        Usage::new(sample, state, pass.reach, plan.select).over_level(plan.search, sample, pass.reach);
+        Usage::new(sample, state, pass.margin, plan.select).over_level(plan.search, sample, pass.margin);
     let mut scratch = VisitScratch::new(sample);
     let mut known = pass.known_mask();
     let mut sums = Sums::default();
     for &v in order {
         let v = v as usize;
-        let draw = || super::start::random_texel(sample, pass.reach, rng);
+        let draw = || super::start::random_texel(sample, pass.margin, rng);
         let choice = pass.visit(v, matcher, &mut scratch, state, known.as_deref(), &usage, draw);
         apply(v, choice, state, sample, &mut usage, known.as_deref_mut(), &mut sums);
     }
@@ -148,7 +148,7 @@ pub fn run_interleaved_pass<V: VertexMatch>(
     seed: u64,
 ) -> PassStats {
     let pass = PassInputs::new(level, sample, plan, make().reach());
-    let mut usage = Usage::new(sample, state, pass.reach, plan.select);
+    let mut usage = Usage::new(sample, state, pass.margin, plan.select);
     let mut known = pass.known_mask();
     let mut sums = Sums::default();
     for class in &colouring.classes {
@@ -161,7 +161,7 @@ pub fn run_interleaved_pass<V: VertexMatch>(
                     let draw = || {
                         let mut rng =
                             ChaCha8Rng::seed_from_u64(seed ^ u64::from(v).wrapping_mul(VERTEX_SEED));
-                        super::start::random_texel(sample, pass.reach, &mut rng)
+                        super::start::random_texel(sample, pass.margin, &mut rng)
                     };
                     pass.visit(v as usize, matcher, scratch, frozen, seen, &usage, draw)
                 },
@@ -213,7 +213,8 @@ struct PassInputs<'a> {
     level: &'a TargetLevel,
     sample: &'a SampleLevel,
     plan: &'a PassPlan,
-    reach: usize,
+    /// How far inside the sample's edges candidates stay ([`TargetLevel::candidate_margin`]).
+    margin: usize,
     full: Option<Vec<u32>>,
     k: usize,
 }
@@ -235,9 +236,10 @@ impl VisitScratch {
 
 impl<'a> PassInputs<'a> {
     fn new(level: &'a TargetLevel, sample: &'a SampleLevel, plan: &'a PassPlan, reach: usize) -> Self {
-        let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, reach));
+        let margin = level.candidate_margin(reach);
+        let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, margin));
         let k = if let Search::KCoherence { k } = plan.search { k } else { 1 };
-        PassInputs { level, sample, plan, reach, full, k }
+        PassInputs { level, sample, plan, margin, full, k }
     }
 
     fn known_mask(&self) -> Option<Vec<bool>> {
@@ -263,7 +265,7 @@ impl<'a> PassInputs<'a> {
         let shift_list = matcher.follow(shift_list, state, followed);
         // Gathered under a full search too: the forward shifts tell which candidates
         // continue a neighbour's copy, for the coherence bias.
-        coherence.gather(shift_list, known, state, self.sample, (self.k, self.reach, matcher.two_level()));
+        coherence.gather(shift_list, known, state, self.sample, (self.k, self.margin, matcher.two_level()));
         let coherence = &*coherence;
         let candidates: &[u32] = self.full.as_deref().unwrap_or(coherence.out.as_slice());
         let current = state.uv[v];

@@ -311,11 +311,13 @@ impl SampleLevel {
         }
     }
 
-    /// (x, y) brought to the nearest pixel whose `radius` neighbourhood lies inside the
-    /// sample (wrapped on tileable samples): where a copied neighbourhood can be read whole.
-    pub fn candidate_pixel(&self, x: i64, y: i64, radius: usize) -> usize {
+    /// (x, y) brought to the nearest candidate texel, `margin` texels inside the sample's
+    /// edges (any texel, wrapped, on tileable samples). The margin is the target's
+    /// ([`super::target::TargetLevel::candidate_margin`]): the template's radius, where a
+    /// copied neighbourhood can be read whole, or less on a plane.
+    pub fn candidate_pixel(&self, x: i64, y: i64, margin: usize) -> usize {
         let (w, h) = (self.width as i64, self.height as i64);
-        let r = radius as i64;
+        let r = margin as i64;
         let (x, y) = if self.tileable {
             (x.rem_euclid(w), y.rem_euclid(h))
         } else if w > 2 * r && h > 2 * r {
@@ -326,16 +328,31 @@ impl SampleLevel {
         (y * w + x) as usize
     }
 
-    /// (x, y) folded into the texels whose `radius` neighbourhood lies inside the sample:
-    /// wrapped on tileable samples, mirrored at the band's edges otherwise. Unlike clamping,
-    /// mirroring never sends a whole run of coordinates onto one edge texel (where a smear or
-    /// streak would start).
-    pub fn fold_into_candidates(&self, x: i64, y: i64, radius: usize) -> [i32; 2] {
+    /// The margin on a side of `n` texels: `margin`, or less where the side is too short.
+    fn side_margin(&self, n: usize, margin: usize) -> i64 {
+        if self.tileable {
+            0
+        } else {
+            (margin as i64).min((n as i64 - 1) / 2)
+        }
+    }
+
+    /// Candidate texels across a side of `n` texels (the level's width or height) whose
+    /// edges keep `margin` texels out: the band patches wrap around.
+    pub fn band(&self, n: usize, margin: usize) -> usize {
+        (n as i64 - 2 * self.side_margin(n, margin)).max(1) as usize
+    }
+
+    /// (x, y) folded into the candidate texels (`margin` inside the edges): wrapped on
+    /// tileable samples, mirrored at the band's edges otherwise. Unlike clamping, mirroring
+    /// never sends a whole run of coordinates onto one edge texel (where a smear or streak
+    /// would start).
+    pub fn fold_into_candidates(&self, x: i64, y: i64, margin: usize) -> [i32; 2] {
         let fold = |v: i64, n: usize| -> i64 {
             if self.tileable {
                 return v.rem_euclid(n as i64);
             }
-            let r = (radius as i64).min((n as i64 - 1) / 2);
+            let r = self.side_margin(n, margin);
             let (lo, hi) = (r, n as i64 - 1 - r);
             if hi <= lo {
                 return lo;
@@ -347,21 +364,21 @@ impl SampleLevel {
         [fold(x, self.width) as i32, fold(y, self.height) as i32]
     }
 
-    /// (x, y) wrapped around the band of texels whose `radius` neighbourhood lies inside the
-    /// sample (the whole sample when it tiles), as if that band tiled.
-    pub fn wrap_into_candidates(&self, x: i64, y: i64, radius: usize) -> [i32; 2] {
+    /// (x, y) wrapped around the band of candidate texels (`margin` inside the edges; the
+    /// whole sample when it tiles), as if that band tiled.
+    pub fn wrap_into_candidates(&self, x: i64, y: i64, margin: usize) -> [i32; 2] {
         let wrap = |v: i64, n: usize| -> i64 {
-            let r = if self.tileable { 0 } else { (radius as i64).min((n as i64 - 1) / 2) };
-            r + (v - r).rem_euclid((n as i64 - 2 * r).max(1))
+            let r = self.side_margin(n, margin);
+            r + (v - r).rem_euclid(self.band(n, margin) as i64)
         };
         [wrap(x, self.width) as i32, wrap(y, self.height) as i32]
     }
 
-    /// Whether (x, y) is a texel whose `radius` neighbourhood lies inside the sample (any
-    /// texel of a tileable sample).
-    pub fn is_candidate(&self, x: i64, y: i64, radius: usize) -> bool {
+    /// Whether (x, y) is a candidate texel: `margin` inside the sample's edges (any texel of
+    /// a tileable sample).
+    pub fn is_candidate(&self, x: i64, y: i64, margin: usize) -> bool {
         let inside = |v: i64, n: usize| {
-            let r = (radius as i64).min((n as i64 - 1) / 2);
+            let r = self.side_margin(n, margin);
             (r..n as i64 - r).contains(&v)
         };
         self.tileable || (inside(x, self.width) && inside(y, self.height))

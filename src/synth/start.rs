@@ -16,17 +16,17 @@ use std::collections::BinaryHeap;
 const STEP: f32 = 1.5;
 
 /// Random sample coordinates for every vertex (Tong §5.1: "randomly mapped to the pixels").
-pub fn random_state(level: &TargetLevel, sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -> State {
-    let uv = (0..level.vertices).map(|_| random_texel(sample, radius, rng)).collect();
+pub fn random_state(level: &TargetLevel, sample: &SampleLevel, margin: usize, rng: &mut ChaCha8Rng) -> State {
+    let uv = (0..level.vertices).map(|_| random_texel(sample, margin, rng)).collect();
     with_labels(uv, sample)
 }
 
-/// A uniformly random texel whose `radius` neighbourhood lies inside the sample.
-pub fn random_texel(sample: &SampleLevel, radius: usize, rng: &mut ChaCha8Rng) -> [i32; 2] {
+/// A uniformly random candidate texel (`margin` inside the sample's edges).
+pub fn random_texel(sample: &SampleLevel, margin: usize, rng: &mut ChaCha8Rng) -> [i32; 2] {
     let p = sample.candidate_pixel(
         rng.random_range(0..sample.width as i64),
         rng.random_range(0..sample.height as i64),
-        radius,
+        margin,
     );
     [(p % sample.width) as i32, (p / sample.width) as i32]
 }
@@ -57,7 +57,7 @@ pub(crate) fn patch_state<M: Metric>(
     level: &TargetLevel,
     sample: &SampleLevel,
     metric: &M,
-    (radius, patch_radius, k): (usize, f32, usize),
+    (margin, patch_radius, k): (usize, f32, usize),
     rng: &mut ChaCha8Rng,
 ) -> State {
     let graph = Steps::of(level);
@@ -69,15 +69,15 @@ pub(crate) fn patch_state<M: Metric>(
     }
     let place = |c: [i64; 2], v: usize| {
         let o = position[v].map(|p| p.round() as i64);
-        sample.wrap_into_candidates(c[0] + o[0], c[1] + o[1], radius)
+        sample.wrap_into_candidates(c[0] + o[0], c[1] + o[1], margin)
     };
     let mut uv = vec![[0i32; 2]; level.vertices];
     let mut placed = vec![false; seeds.len()];
-    let mut uses = Uses::new(sample, radius, level.vertices);
+    let mut uses = Uses::new(sample, margin, level.vertices);
     for patch in seam_order(&graph, &owner, seeds.len()) {
-        let seam = seam_pairs(&graph, &members[patch], &owner, &placed, &uv, sample, radius);
-        let mut candidates = placements(&seam, &position, sample, (radius, k), rng);
-        keep_apart(&mut candidates, &continuations(&seam, &position), sample, (radius, patch_radius));
+        let seam = seam_pairs(&graph, &members[patch], &owner, &placed, &uv, sample, margin);
+        let mut candidates = placements(&seam, &position, sample, (margin, k), rng);
+        keep_apart(&mut candidates, &continuations(&seam, &position), sample, (margin, patch_radius));
         let cost = |c: [i64; 2]| -> f32 {
             let seam_cost: f32 =
                 seam.iter().map(|&(v, predicted)| metric.texel_distance(place(c, v), predicted)).sum();
@@ -141,7 +141,7 @@ fn seam_pairs(
     placed: &[bool],
     uv: &[[i32; 2]],
     sample: &SampleLevel,
-    radius: usize,
+    margin: usize,
 ) -> Vec<(usize, [i32; 2])> {
     let mut seam = Vec::new();
     for &v in members {
@@ -151,7 +151,7 @@ fn seam_pairs(
                 let predicted = sample.wrap_into_candidates(
                     (x as f32 - o[0]).round() as i64,
                     (y as f32 - o[1]).round() as i64,
-                    radius,
+                    margin,
                 );
                 seam.push((v as usize, predicted));
             }
@@ -165,14 +165,14 @@ fn placements(
     seam: &[(usize, [i32; 2])],
     position: &[[f32; 2]],
     sample: &SampleLevel,
-    (radius, k): (usize, usize),
+    (margin, k): (usize, usize),
     rng: &mut ChaCha8Rng,
 ) -> Vec<[i64; 2]> {
     let mut out: Vec<[i64; 2]> =
-        (0..RANDOM_PLACES).map(|_| random_texel(sample, radius, rng).map(i64::from)).collect();
+        (0..RANDOM_PLACES).map(|_| random_texel(sample, margin, rng).map(i64::from)).collect();
     let step = seam.len().div_ceil(SUGGESTING_PAIRS).max(1);
     for &(v, [x, y]) in seam.iter().step_by(step) {
-        let pixel = sample.candidate_pixel(x as i64, y as i64, radius);
+        let pixel = sample.candidate_pixel(x as i64, y as i64, margin);
         let o = position[v].map(|p| p.round() as i64);
         for &q in sample.list(pixel, k, false).iter().skip(1) {
             let (qx, qy) = ((q as usize % sample.width) as i64, (q as usize / sample.width) as i64);
@@ -203,9 +203,9 @@ struct Uses {
 }
 
 impl Uses {
-    fn new(sample: &SampleLevel, radius: usize, vertices: usize) -> Self {
-        let band = |n: usize| if sample.tileable { n } else { n.saturating_sub(2 * radius).max(1) };
-        let fair = vertices as f32 / (band(sample.width) * band(sample.height)) as f32;
+    fn new(sample: &SampleLevel, margin: usize, vertices: usize) -> Self {
+        let band = sample.band(sample.width, margin) * sample.band(sample.height, margin);
+        let fair = vertices as f32 / band as f32;
         Uses { width: sample.width, count: vec![0; sample.width * sample.height], fair }
     }
 
@@ -256,10 +256,9 @@ fn keep_apart(
     candidates: &mut Vec<[i64; 2]>,
     continuations: &[[i64; 2]],
     sample: &SampleLevel,
-    (radius, patch_radius): (usize, f32),
+    (margin, patch_radius): (usize, f32),
 ) {
-    let band = |n: usize| if sample.tileable { n as i64 } else { (n as i64 - 2 * radius as i64).max(1) };
-    let (bw, bh) = (band(sample.width), band(sample.height));
+    let (bw, bh) = (sample.band(sample.width, margin) as i64, sample.band(sample.height, margin) as i64);
     let slip = |c: [i64; 2], t: [i64; 2]| {
         let (dx, dy) = ((c[0] - t[0]).rem_euclid(bw), (c[1] - t[1]).rem_euclid(bh));
         (dx.min(bw - dx) as f32).hypot(dy.min(bh - dy) as f32)
@@ -273,7 +272,7 @@ fn keep_apart(
 /// The first pass of a finer level (Tong §5.1): each vertex's coordinate is twice its
 /// parent's plus its offset from the parent, folded back into the sample where the offset
 /// leads out of it; labels come from this level's texton map.
-pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel, radius: usize) -> State {
+pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel, margin: usize) -> State {
     let uv = level
         .parents
         .iter()
@@ -282,7 +281,7 @@ pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel, radius
             sample.fold_into_candidates(
                 2 * cx as i64 + link.offset[0].round() as i64,
                 2 * cy as i64 + link.offset[1].round() as i64,
-                radius,
+                margin,
             )
         })
         .collect();
@@ -293,14 +292,14 @@ pub fn inherit(level: &TargetLevel, coarse: &State, sample: &SampleLevel, radius
 /// [`super::recipe::Start::Jittered`]): per axis `floor(texels · u + ½)`, u uniform in
 /// [−1, 1) from a hash of `seed`, the vertex and the axis, folded back into the sample's
 /// candidate texels. Labels are read again at the new coordinates.
-pub fn jitter(state: State, sample: &SampleLevel, radius: usize, texels: f32, seed: u64) -> State {
+pub fn jitter(state: State, sample: &SampleLevel, margin: usize, texels: f32, seed: u64) -> State {
     let offset = |v: usize, axis: i64| {
         let u = 2.0 * crate::seeded::unit(seed, v as i64, axis, 0) - 1.0;
         (texels * u + 0.5).floor() as i64
     };
     let uv = (state.uv.iter().enumerate())
         .map(|(v, &[x, y])| {
-            sample.fold_into_candidates(x as i64 + offset(v, 0), y as i64 + offset(v, 1), radius)
+            sample.fold_into_candidates(x as i64 + offset(v, 0), y as i64 + offset(v, 1), margin)
         })
         .collect();
     with_labels(uv, sample)
@@ -464,6 +463,31 @@ mod tests {
         let changed = one.uv.iter().zip(&uv).filter(|(a, b)| a != b).count();
         assert!(changed > 100, "{changed} of 200 moved");
         assert!(one.uv.iter().zip(&one.labels).all(|(&[x, y], &l)| l == sample.label_at(x as i64, y as i64)));
+    }
+
+    /// On a plane, patches come to within [`PLANE_EDGE_MARGIN`] of the edge of a sample that
+    /// does not tile, so what lies along its edges (a brick sample's mortar courses) is
+    /// copied too; a mesh's margin stays the template's radius.
+    #[test]
+    fn plane_patches_reach_the_sample_s_edge_band_and_mesh_patches_do_not() {
+        use crate::synth::target::{Neighbourhoods, PLANE_EDGE_MARGIN};
+        let mut sample = periodic_sample(4);
+        sample.tileable = false;
+        let plane = &grid_levels(40, 40, 1, 5, 3)[0];
+        let mesh =
+            Neighbourhoods::Mesh { template: 5, slots: Vec::new(), shift_start: vec![0], shifts: Vec::new() };
+        assert_eq!(plane.candidate_margin(2), PLANE_EDGE_MARGIN);
+        assert_eq!(TargetLevel::new(0, mesh).candidate_margin(2), 2);
+        let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
+        let used = |margin: usize| {
+            let state =
+                patch_state(plane, &sample, &metric, (margin, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
+            let xs = state.uv.iter().flat_map(|&[x, y]| [x, y]);
+            (xs.clone().min().unwrap(), xs.max().unwrap())
+        };
+        let last = sample.width as i32 - 1;
+        assert_eq!(used(PLANE_EDGE_MARGIN), (1, last - 1));
+        assert_eq!(used(2), (2, last - 2));
     }
 
     #[test]

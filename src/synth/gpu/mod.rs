@@ -33,7 +33,7 @@ use super::neighbourhood::{Mask, Neighbourhood, ParentTemplate, SquareMetric};
 use super::pass::{Colouring, Schedule, VERTEX_SEED};
 use super::sample::{AppearanceMap, SampleLevel};
 use super::slot::{Slot, OUTSIDE};
-use super::target::{Neighbourhoods, Shift};
+use super::target::{Neighbourhoods, Shift, TargetLevel};
 use crate::render::gpu::context::Gpu;
 use crate::{Error, Result};
 use rand::SeedableRng;
@@ -141,7 +141,8 @@ struct Params {
     sw: u32,
     sh: u32,
     tileable: u32,
-    radius: u32,
+    /// How far inside the sample's edges candidates stay (`TargetLevel::candidate_margin`).
+    margin: u32,
     list_k: u32,
     list_stride: u32,
     metric: u32,
@@ -750,13 +751,13 @@ fn plan_level(job: &PassJob, form: &Form, key: LevelKey, chunk: usize) -> LevelP
         coarse = pack_state(coarse_state);
     }
     base.off_classes = push(&mut tables, form.colouring.classes.iter().flatten().copied());
-    base.off_full = push(&mut tables, full_candidates(sample, target.template / 2));
+    base.off_full = push(&mut tables, full_candidates(sample, square_margin(target)));
     push_templates(&mut tables, &mut base, form);
     (base.cap_bits, base.entries, base.stride) =
         (key.table.bits, key.table.entries as u32, key.table.stride() as u32);
     (base.sw, base.sh, base.tileable) = (sample.width as u32, sample.height as u32, sample.tileable.into());
-    (base.radius, base.list_stride, base.textons) =
-        ((target.template / 2) as u32, sample.k as u32, sample.textons as u32);
+    (base.margin, base.list_stride, base.textons) =
+        (square_margin(target) as u32, sample.k as u32, sample.textons as u32);
     base.metric = u32::from(form.metric != SquareMetric::Gamma);
     base.dims = map_of(sample, form.metric).map_or(0, |m| m.dims as u32);
     (base.query_words, base.fallback) = (query_words(sample, form), sample.default_texton().into());
@@ -853,7 +854,7 @@ fn batching(job: &PassJob, form: &Form, dims: usize) -> (u32, usize) {
     let per_pixel = if form.metric == SquareMetric::Gamma || form.split() { 1 } else { 1 + dims };
     let batch = (LOOP_BUDGET / (form.pixels() * per_pixel + 16)).max(1) as u32;
     let most =
-        full_candidates(job.sample, job.target.template / 2).len().max(Table::of(job, form).entries) as u32;
+        full_candidates(job.sample, square_margin(job.target)).len().max(Table::of(job, form).entries) as u32;
     (batch, most.div_ceil(batch) as usize)
 }
 
@@ -887,10 +888,15 @@ fn batch_starts(batch: u32, batches: usize) -> Vec<u32> {
         .collect()
 }
 
+/// How far inside the sample's edges the square template's candidates stay.
+fn square_margin(target: &TargetLevel) -> usize {
+    target.candidate_margin(target.template / 2)
+}
+
 /// The parameters every sub-pass of the pass shares, and how many score dispatches it needs.
 fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usize) {
     let sample = job.sample;
-    let radius = job.target.template / 2;
+    let margin = square_margin(job.target);
     let mut params = level.base;
     params.off_draws = 0;
     params.off_table = level.vertices as u32;
@@ -901,7 +907,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
         _ => (1, 0),
     };
     params.full_count = match form.search {
-        Search::Full => full_candidates(sample, radius).len() as u32,
+        Search::Full => full_candidates(sample, margin).len() as u32,
         _ => 0,
     };
     params.batch = level.batch;
@@ -919,24 +925,24 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
 /// vertex has a candidate and draws nothing. Only the others draw (as the CPU would: seeded
 /// by the pass and the vertex), or all of them where a full search has no candidate at all.
 fn pass_words(job: &PassJob, form: &Form, state: &State) -> Vec<u32> {
-    let (sample, radius) = (job.sample, job.target.template / 2);
-    let no_full = form.search == Search::Full && full_candidates(sample, radius).is_empty();
+    let (sample, margin) = (job.sample, square_margin(job.target));
+    let no_full = form.search == Search::Full && full_candidates(sample, margin).is_empty();
     let draws: Vec<u32> = state
         .uv
         .par_iter()
         .enumerate()
         .map(|(v, &[x, y])| {
-            if !no_full && sample.is_candidate(x.into(), y.into(), radius) {
+            if !no_full && sample.is_candidate(x.into(), y.into(), margin) {
                 return 0;
             }
             let mut rng = ChaCha8Rng::seed_from_u64(form.seed ^ (v as u64).wrapping_mul(VERTEX_SEED));
-            let [x, y] = super::start::random_texel(sample, radius, &mut rng);
+            let [x, y] = super::start::random_texel(sample, margin, &mut rng);
             y as u32 * sample.width as u32 + x as u32
         })
         .collect();
     let vertices = state.uv.len();
     let table = match form.choosy {
-        Some(strength) => choosy_factors(vertices, sample, radius, strength),
+        Some(strength) => choosy_factors(vertices, sample, margin, strength),
         None => vec![1.0; vertices + 1],
     };
     draws.into_iter().chain(table.iter().map(|f| f.to_bits())).collect()
