@@ -13,7 +13,8 @@ pub enum Search {
         /// Entries read from each kNN list (capped by the lists' length).
         k: usize,
     },
-    /// Every pixel of the sample whose neighbourhood lies inside it (Table 2's full search).
+    /// Every candidate texel of the sample, the target's margin inside its edges (Table 2's full
+    /// search; [`super::target::TargetLevel::candidate_margin`]).
     Full,
     /// Every candidate, as [`Search::Full`], found through Castellanos and Williams' dynamic
     /// kd-trees over the eigenvector-transformed neighbourhoods (§6, [`super::kdtrees`]):
@@ -34,15 +35,15 @@ impl Search {
     }
 }
 
-/// Every pixel whose `radius` neighbourhood lies inside the sample (all of them when it
-/// tiles), for the full search.
-pub fn full_candidates(sample: &SampleLevel, radius: usize) -> Vec<u32> {
+/// Every texel `margin` inside the sample's edges (all of them when it tiles), for the full
+/// search.
+pub fn full_candidates(sample: &SampleLevel, margin: usize) -> Vec<u32> {
     (0..(sample.width * sample.height) as u32)
         .filter(|&p| {
             sample.is_candidate(
                 (p as usize % sample.width) as i64,
                 (p as usize / sample.width) as i64,
-                radius,
+                margin,
             )
         })
         .collect()
