@@ -2,7 +2,7 @@
 //!
 //! - [`picture`]: image space, on what a user sees: nearest-patch energy at two scales,
 //!   colour χ², contrast; [`quality`] all of them at once; [`repetition`]: sample places recurring at regular offsets, and
-//!   how evenly the sample is used.
+//!   how evenly the sample is used; both on an exact nearest-patch search (`nearest`).
 //! - [`surface`]: a texture as it lies on a surface (an exported model's, or a surface
 //!   map's baked), against the sample at the same scale: smeared share, detail, contrast, colour.
 //! - [`coords`]: the coordinate map: collapse, smear, copy, coherence.
@@ -12,6 +12,7 @@
 //! coordinate figures are the ones to read first.
 
 pub mod coords;
+pub(crate) mod nearest;
 pub mod picture;
 pub mod quality;
 pub mod repetition;

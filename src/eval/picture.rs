@@ -5,6 +5,8 @@
 //! Texton-space figures can look perfect on a broken result (a smear of one texel, a
 //! featureless blur); these cannot, because they compare what is seen.
 
+use super::nearest::PatchIndex;
+
 /// An RGB picture, row-major, sRGB-encoded values in [0, 1].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Picture {
@@ -106,8 +108,8 @@ pub(crate) fn mean_energy(nearest: &[(u32, f64)]) -> f64 {
 
 /// Per row of `queries`, the nearest patch of `sample` (an index into its
 /// [`patch_positions`], wrapping when `tileable`) and its summed squared difference. Exact
-/// nearest neighbours: ‖q − s‖² = ‖q‖² + ‖s‖² − 2 q·s with the products as one matrix
-/// product per block of queries. Empty when the sample is smaller than a patch.
+/// nearest neighbours ([`PatchIndex`]); of equally near patches, the first. Empty when the
+/// sample is smaller than a patch.
 pub(crate) fn nearest_patches(
     queries: &ndarray::Array2<f32>,
     sample: &Picture,
@@ -118,29 +120,10 @@ pub(crate) fn nearest_patches(
         return Vec::new();
     }
     let samples = patch_matrix(sample, &sample_positions);
-    let sample_norms: Vec<f32> = samples.rows().into_iter().map(|r| r.dot(&r)).collect();
-    // The expansion finds the nearest patch; its distance is then summed exactly, since
-    // ‖q‖² + ‖s‖² − 2 q·s cancels badly when the two are close.
-    queries
-        .axis_chunks_iter(ndarray::Axis(0), 1024)
-        .flat_map(|block| {
-            let products = block.dot(&samples.t());
-            block
-                .rows()
-                .into_iter()
-                .zip(products.rows())
-                .map(|(q, row)| {
-                    let nearest = (0..row.len())
-                        .min_by(|&a, &b| {
-                            (sample_norms[a] - 2.0 * row[a]).total_cmp(&(sample_norms[b] - 2.0 * row[b]))
-                        })
-                        .unwrap_or(0);
-                    let d = q.iter().zip(samples.row(nearest)).map(|(a, b)| ((a - b) as f64).powi(2)).sum();
-                    (nearest as u32, d)
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect()
+    let index = PatchIndex::new(&samples);
+    let found = index.search(queries, f64::INFINITY, |_, _| true);
+    // Only a NaN value leaves a query with no nearest patch; its energy is then NaN too.
+    found.into_iter().map(|f| f.unwrap_or((0, f64::NAN))).collect()
 }
 
 /// Top-left corners of the patches of `picture`: inside it, or everywhere when it wraps.

@@ -13,8 +13,9 @@
 //! sample that does not overlap it ([`DISTINCT`]): a unique knot weighs 1, a tile that
 //! recurs in the sample about 0, and flat areas (where a repeat cannot be seen either) little.
 
+use super::nearest::PatchIndex;
 use super::picture::{patch_matrix, patch_positions, Picture, PATCH_SIDE};
-use ndarray::{Array2, Axis};
+use ndarray::Array2;
 use serde::Serialize;
 
 /// The repetition measures of one result against its sample.
@@ -185,8 +186,12 @@ fn distinctiveness(sample: &Picture, positions: &[(usize, usize)], tileable: boo
     let patches = patch_matrix(sample, positions);
     let norms: Vec<f32> = patches.rows().into_iter().map(|r| r.dot(&r)).collect();
     let dims = patches.ncols() as f64;
+    let scale = DISTINCT * mean_random_distance(&patches, &norms);
+    if scale.is_nan() || scale <= 0.0 {
+        return vec![0.0; positions.len()];
+    }
     let side = PATCH_SIDE as i64;
-    let apart = |a: (usize, usize), b: (usize, usize)| {
+    let apart = |a: usize, b: usize| {
         let d = |p: usize, q: usize, n: usize| {
             let d = (p as i64 - q as i64).abs();
             if tileable {
@@ -195,28 +200,13 @@ fn distinctiveness(sample: &Picture, positions: &[(usize, usize)], tileable: boo
                 d
             }
         };
+        let (a, b) = (positions[a], positions[b]);
         d(a.0, b.0, sample.width).max(d(a.1, b.1, sample.height)) >= side
     };
-    let nearest: Vec<f64> = patches
-        .axis_chunks_iter(Axis(0), 512)
-        .enumerate()
-        .flat_map(|(block, rows)| {
-            let products = rows.dot(&patches.t());
-            let first = block * 512;
-            (0..rows.nrows())
-                .map(|i| {
-                    let me = first + i;
-                    let best = (0..positions.len())
-                        .filter(|&j| apart(positions[me], positions[j]))
-                        .map(|j| norms[me] + norms[j] - 2.0 * products[[i, j]])
-                        .fold(f32::INFINITY, f32::min);
-                    (best.max(0.0) as f64) / dims
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    let scale = DISTINCT * mean_random_distance(&patches, &norms);
-    nearest.iter().map(|&d| if scale > 0.0 { (d / scale).min(1.0) } else { 0.0 }).collect()
+    // A place at least `scale` from every other weighs 1 however far it is, so the search
+    // need not look further: most places of a photograph are that distinct.
+    let found = PatchIndex::new(&patches).search(&patches, scale * dims, apart);
+    found.iter().map(|f| f.map_or(1.0, |(_, d)| (d / dims / scale).min(1.0))).collect()
 }
 
 /// Mean squared difference per value between two patches of the sample drawn at random
