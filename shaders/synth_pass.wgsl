@@ -66,7 +66,7 @@ struct Params {
     // template pixel that `prepare` leaves; the default texton (outside the patch) of the
     // sample level and of the parent's.
     split: u32, query_words: u32, fallback: u32, p_fallback: u32,
-    _pad0: u32, _pad1: u32, _pad2: u32,
+    off_move: u32, _pad1: u32, _pad2: u32,
 }
 
 // A score dispatch's candidates: [start, start + P.batch) of each vertex's.
@@ -545,15 +545,17 @@ fn level_of(parent: bool) -> Level {
     return Level(P.off_labels, P.off_gamma, P.off_map, P.map_stride, vec3<u32>(P.sw, P.sh, P.textons), P.fallback);
 }
 
-// selection_factor: the choosy penalty times the coherence bias on a fresh copy.
-fn factor_of(q: u32, current: u32, continues: bool) -> f32 {
+// selection_factor: the choosy penalty times the coherence bias on a fresh copy, times the
+// vertex's factor on moving (PassPlan::move_cost) for any texel but its current one.
+fn factor_of(v: u32, q: u32, current: u32, continues: bool) -> f32 {
     var usage = 1.0;
     if (P.choosy != 0u) {
         let n = atomicLoad(&counts[q]);
         let own_use = select(0u, 1u, q == current);
         usage = f(pass_data[P.off_table + n - own_use]);
     }
-    return usage * select(P.fresh, 1.0, continues);
+    let moved = select(f(pass_data[P.off_move + v]), 1.0, q == current);
+    return usage * select(P.fresh, 1.0, continues) * moved;
 }
 
 // Window pixel k of vertex (vx, vy): its vertex's coordinate shifted back by the pixel's
@@ -822,7 +824,7 @@ fn score(@builtin(global_invocation_id) gid: vec3<u32>) {
             own.costs = costs_base(i) + j * pixels();
             up.costs = own.costs + P.side * P.side;
         }
-        consider(&best, own, up, q, factor_of(q, current, continues));
+        consider(&best, own, up, q, factor_of(v, q, current, continues));
     }
     scratch[info + 2u] = select(0u, 1u, best.found);
     scratch[info + 3u] = bitcast<u32>(best.d);

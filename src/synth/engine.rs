@@ -22,7 +22,7 @@ pub struct PassStats {
 
 /// How a pass runs.
 #[derive(Clone, Copy, Debug)]
-pub struct PassPlan {
+pub struct PassPlan<'a> {
     /// How the candidates are formed.
     pub search: Search,
     /// How one of them is chosen.
@@ -34,6 +34,9 @@ pub struct PassPlan {
     /// [`Mask::Visited`] and [`Mask::Half`], a vertex with no source of candidates starts from
     /// a random texel.
     pub mask: Mask,
+    /// Per vertex, the factor on its distance to any texel but its current one
+    /// ([`super::recipe::KeepInteriors`]); none: 1 everywhere.
+    pub move_cost: Option<&'a [f32]>,
 }
 
 /// The factor on candidate `q`'s distance for a vertex now at `current`, whose candidates'

@@ -508,7 +508,7 @@ pub fn isotropic_pass(
             None => matcher,
         }
     };
-    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask() };
+    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask(), move_cost: None };
     run_scheduled_pass(level, state, sample, make, &plan, schedule, rng)
 }
 

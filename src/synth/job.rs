@@ -30,4 +30,6 @@ pub(crate) struct PassJob<'a> {
     pub coarse: Option<&'a State>,
     /// How the pass visits the level.
     pub schedule: &'a Schedule<'a>,
+    /// Per vertex, the factor on moving ([`super::engine::PassPlan::move_cost`]).
+    pub move_costs: Option<&'a [f32]>,
 }

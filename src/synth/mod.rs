@@ -151,6 +151,9 @@ pub fn synthesize(
     let mut runner =
         device::Runner::open(params.device, device::why_auto_keeps_the_cpu(preset, params.search))?;
     let mut state: Option<State> = None;
+    // Each vertex's patch, where the coarsest level started from patches whose interiors the
+    // recipe keeps.
+    let mut owner: Option<Vec<u32>> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;
     // The greedy colouring of a level runs on one core (on the finest level of a 250k
@@ -192,7 +195,10 @@ pub fn synthesize(
                         _ => inherited,
                     }
                 }
-                (Start::Random, _) => start::random_state(target, level_sample, margin, &mut rng),
+                (Start::Random, _) => {
+                    owner = None;
+                    start::random_state(target, level_sample, margin, &mut rng)
+                }
                 (Start::Patches { radius }, _) => {
                     // A patch narrower than the template is all seam: the templates that judge
                     // its placement mostly see its neighbours (and a small periodic sample's
@@ -205,12 +211,22 @@ pub fn synthesize(
                     );
                     let k = search.list_length(level_sample);
                     let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
-                    patches(metric, target, level_sample, (margin, patch, k), &mut rng)?
+                    let (state, patch_owner) =
+                        patches(metric, target, level_sample, (margin, patch, k), &mut rng)?;
+                    owner = preset.keep_interiors.map(|_| patch_owner);
+                    state
                 }
                 (Start::Inherit | Start::Jittered { .. }, None) => {
                     unreachable!("checked above: the coarsest level does not inherit")
                 }
             };
+            if let (Some(coarse_owner), true) = (&owner, recipe.start.inherits()) {
+                owner = Some(start::inherit_owner(target, coarse_owner));
+            }
+            let move_costs = preset
+                .keep_interiors
+                .zip(owner.as_deref())
+                .map(|(keep, owner)| start::move_costs(target, owner, keep));
             let mut stats = PassStats::default();
             let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
             let isotropic_level =
@@ -245,6 +261,7 @@ pub fn synthesize(
                     coarse: coarse.as_ref(),
                     rounds: rounds.as_ref(),
                     iso: iso.as_ref(),
+                    move_costs: move_costs.as_deref(),
                 };
                 let job = job::PassJob {
                     pass: p,
@@ -256,6 +273,7 @@ pub fn synthesize(
                     coarse_sample: levels.get(l + 1),
                     coarse: coarse.as_ref(),
                     schedule: &schedule,
+                    move_costs: move_costs.as_deref(),
                 };
                 stats = match runner.pass(&job, &mut current)? {
                     Some(stats) => stats,
@@ -287,6 +305,9 @@ struct LevelInputs<'a> {
     rounds: Option<&'a (RoundTarget<'a>, RoundSample)>,
     /// The level's isotropic neighbourhoods, when a pass matches them.
     iso: Option<&'a isotropic::IsoLevel<'a>>,
+    /// Per vertex, the factor on moving ([`PassPlan::move_cost`]), where the recipe keeps
+    /// its patches' interiors.
+    move_costs: Option<&'a [f32]>,
 }
 
 /// What a level's isotropic passes compare: the grid's points or the mesh level's marching,
@@ -385,7 +406,8 @@ fn run_pass(
             round_pass::adaptive_pass(target, round, state, sample, round_sample, how, order, rng)
         }
         Neighbourhood::Square { metric, template } => {
-            let plan = PassPlan { search, mask: template.mask(), select, coherence_bias: bias };
+            let (mask, move_cost) = (template.mask(), inputs.move_costs);
+            let plan = PassPlan { search, mask, select, coherence_bias: bias, move_cost };
             let square = (inputs, template, &plan);
             Ok(match metric {
                 SquareMetric::Gamma => {
@@ -441,7 +463,7 @@ fn patches(
     sample: &SampleLevel,
     sizes: (usize, f32, usize),
     rng: &mut ChaCha8Rng,
-) -> Result<State> {
+) -> Result<(State, Vec<u32>)> {
     let template = target.template;
     Ok(match kind {
         MetricKind::Gamma => {

@@ -30,7 +30,7 @@
 //! let target = &grid_levels(48, 48, 1, 7, 3)[0];
 //! let metric = AppearanceMetric { map: level.appearance.as_ref().expect("analysed"), template: 7 };
 //! let mut matcher = SquareMatch::new(target, level, &metric, None, Mask::Full);
-//! let plan = PassPlan { search: Search::KCoherence { k: 4 }, select: Select::Argmin, coherence_bias: 0.5, mask: Mask::Full };
+//! let plan = PassPlan { search: Search::KCoherence { k: 4 }, select: Select::Argmin, coherence_bias: 0.5, mask: Mask::Full, move_cost: None };
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
 //! let mut state = random_state(target, level, 3, &mut rng);
 //! let first = visit_order(target, VisitOrder::Random, None, &mut rng);
@@ -212,7 +212,7 @@ pub(crate) const VERTEX_SEED: u64 = 0x9E37_79B9_7F4A_7C15;
 struct PassInputs<'a> {
     level: &'a TargetLevel,
     sample: &'a SampleLevel,
-    plan: &'a PassPlan,
+    plan: &'a PassPlan<'a>,
     /// How far inside the sample's edges candidates stay ([`TargetLevel::candidate_margin`]).
     margin: usize,
     full: Option<Vec<u32>>,
@@ -235,7 +235,7 @@ impl VisitScratch {
 }
 
 impl<'a> PassInputs<'a> {
-    fn new(level: &'a TargetLevel, sample: &'a SampleLevel, plan: &'a PassPlan, reach: usize) -> Self {
+    fn new(level: &'a TargetLevel, sample: &'a SampleLevel, plan: &'a PassPlan<'a>, reach: usize) -> Self {
         let margin = level.candidate_margin(reach);
         let full = matches!(plan.search, Search::Full).then(|| full_candidates(sample, margin));
         let k = if let Search::KCoherence { k } = plan.search { k } else { 1 };
@@ -271,7 +271,13 @@ impl<'a> PassInputs<'a> {
         let current = state.uv[v];
         let bias = self.plan.coherence_bias;
         let at = (current, usage.floor(candidates));
-        matcher.choose(candidates, current, |q| selection_factor(usage, coherence, q, at, bias), draw)
+        let here = current[1] as u32 * self.sample.width as u32 + current[0] as u32;
+        let move_cost = self.plan.move_cost.map_or(1.0, |costs| costs[v]);
+        let factor = |q| {
+            let moved = if q == here { 1.0 } else { move_cost };
+            selection_factor(usage, coherence, q, at, bias) * moved
+        };
+        matcher.choose(candidates, current, factor, draw)
     }
 }
 

@@ -216,7 +216,7 @@ pub fn adaptive_pass(
 ) -> Result<PassStats> {
     let map = RoundMatch::appearance(sample)?;
     let make = || RoundMatch::new(round, sample, map, round_sample);
-    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask() };
+    let plan = PassPlan { search, select, coherence_bias, mask: compared.mask(), move_cost: None };
     Ok(run_scheduled_pass(level, state, sample, make, &plan, schedule, rng))
 }
 

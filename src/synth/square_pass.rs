@@ -209,6 +209,7 @@ mod tests {
             select: Select::Argmin,
             coherence_bias: 0.0,
             mask: Mask::Half,
+            move_cost: None,
         };
         run_pass(
             level,
@@ -248,8 +249,13 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order: Vec<u32> = (0..32 * 32).collect();
         let metric = GammaMetric { sample: &sample, template: 5 };
-        let plan =
-            PassPlan { search: Search::Full, select: Select::Argmin, coherence_bias: 0.0, mask: Mask::Full };
+        let plan = PassPlan {
+            search: Search::Full,
+            select: Select::Argmin,
+            coherence_bias: 0.0,
+            mask: Mask::Full,
+            move_cost: None,
+        };
         let mut matcher = SquareMatch::new(level, &sample, &metric, None, plan.mask);
         run_pass(level, &mut state, &sample, &mut matcher, &plan, &order, &mut rng);
         let interior_changed = (0..32 * 32)

@@ -3,6 +3,7 @@
 
 use super::engine::State;
 use super::metric::Metric;
+use super::recipe::KeepInteriors;
 use super::sample::SampleLevel;
 use super::target::TargetLevel;
 use rand::seq::SliceRandom;
@@ -59,7 +60,7 @@ pub(crate) fn patch_state<M: Metric>(
     metric: &M,
     (margin, patch_radius, k): (usize, f32, usize),
     rng: &mut ChaCha8Rng,
-) -> State {
+) -> (State, Vec<u32>) {
     let graph = Steps::of(level);
     let seeds = spread_seeds(&graph, patch_radius, rng);
     let (owner, position) = graph.nearest_seed(&seeds);
@@ -91,7 +92,43 @@ pub(crate) fn patch_state<M: Metric>(
         }
         placed[patch] = true;
     }
-    with_labels(uv, sample)
+    (with_labels(uv, sample), owner)
+}
+
+/// Per vertex of `level` whose patch is `owner` (from [`patch_state`], inherited down the
+/// levels through the parent links), the factor on its distance to any texel but its own:
+/// `keep.move_cost` farther than `keep.depth` template radii along the surface from its
+/// patch's edge, 1 nearer. Vertices with no neighbour in another patch anywhere count as
+/// inside.
+pub(crate) fn move_costs(level: &TargetLevel, owner: &[u32], keep: KeepInteriors) -> Vec<f32> {
+    let depth = keep.depth * (level.template / 2) as f32;
+    let graph = Steps::of(level);
+    let mut distance = vec![f32::INFINITY; level.vertices];
+    let mut queue: BinaryHeap<Entry> = BinaryHeap::new();
+    for v in 0..level.vertices {
+        if graph.neighbours(v).any(|(u, ..)| owner[u] != owner[v]) {
+            distance[v] = 0.0;
+            queue.push(Reverse((0, v as u32)));
+        }
+    }
+    while let Some(Reverse((d, v))) = queue.pop() {
+        let (d, v) = (f32::from_bits(d), v as usize);
+        if d > distance[v] || d > depth {
+            continue;
+        }
+        for (u, _, length) in graph.neighbours(v) {
+            if d + length < distance[u] {
+                distance[u] = d + length;
+                queue.push(Reverse(((d + length).to_bits(), u as u32)));
+            }
+        }
+    }
+    distance.iter().map(|&d| if d > depth { keep.move_cost } else { 1.0 }).collect()
+}
+
+/// Each vertex of `level` in its parent's patch.
+pub(crate) fn inherit_owner(level: &TargetLevel, coarse_owner: &[u32]) -> Vec<u32> {
+    level.parents.iter().map(|link| coarse_owner[link.vertex as usize]).collect()
 }
 
 /// Random places to try for a patch, besides those the seam suggests.
@@ -480,7 +517,7 @@ mod tests {
         assert_eq!(TargetLevel::new(0, mesh).candidate_margin(2), 2);
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let used = |margin: usize| {
-            let state =
+            let (state, _) =
                 patch_state(plane, &sample, &metric, (margin, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
             let xs = state.uv.iter().flat_map(|&[x, y]| [x, y]);
             (xs.clone().min().unwrap(), xs.max().unwrap())
@@ -496,7 +533,8 @@ mod tests {
         sample.tileable = false;
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let state = patch_state(level, &sample, &metric, (2, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
+        let (state, owner) =
+            patch_state(level, &sample, &metric, (2, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
         // Right neighbours continue their patch (uv + (1, 0)) except across a seam; the seams
         // are a minority at this patch size.
         let coherent = (0..40 * 40)
@@ -515,5 +553,28 @@ mod tests {
         assert!(*lo > 0 && *hi < 3 * mean, "placement uses the whole band evenly: {lo}..{hi} per texel");
         let distinct: std::collections::HashSet<_> = state.uv.iter().collect();
         assert!(distinct.len() > 100, "patches spread over the sample: {} texels", distinct.len());
+        let inherited = inherit_owner(&grid_levels(80, 80, 2, 5, 3)[0], &owner);
+        assert!(inherited.iter().enumerate().all(|(v, &o)| o == owner[(v / 80 / 2) * 40 + v % 80 / 2]));
+    }
+
+    /// A move costs more only deeper inside a patch than the depth (in radii of the 5×5
+    /// template: 2.5 texels): a vertex beside another patch costs nothing more, and the
+    /// costly ones are those farther from every other patch.
+    #[test]
+    fn moves_cost_more_only_deep_inside_patches() {
+        let sample = periodic_sample(4);
+        let level = &grid_levels(30, 30, 1, 5, 3)[0];
+        let owner: Vec<u32> = (0..900).map(|v| u32::from(v % 30 >= 12)).collect();
+        let keep = KeepInteriors { depth: 1.25, move_cost: 7.0 };
+        let costs = move_costs(level, &owner, keep);
+        for (v, &cost) in costs.iter().enumerate() {
+            let from_edge = if v % 30 < 12 { 11 - v % 30 } else { v % 30 - 12 };
+            let expected = if from_edge as f32 > 2.5 { 7.0 } else { 1.0 };
+            assert_eq!(cost, expected, "vertex {v}, {from_edge} from the edge");
+        }
+        let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
+        let (_, owner) = patch_state(level, &sample, &metric, (2, 6.0, 4), &mut ChaCha8Rng::seed_from_u64(3));
+        let inside = move_costs(level, &owner, keep).iter().filter(|&&c| c > 1.0).count();
+        assert!((1..900 / 2).contains(&inside), "{inside} of 900 deep inside patches of radius 6");
     }
 }

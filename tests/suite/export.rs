@@ -559,12 +559,13 @@ fn vertex_colours_are_the_dense_mesh_with_one_colour_per_vertex() {
 /// against the soler2002 route on the same mesh: soler2002's texture is the sample itself laid
 /// on the surface, so its smeared share (windows flatter than the sample's flattest 5%) is
 /// what the sample's own calm areas score there (marble 0.017, cracked stone 0.027), and its
-/// contrast the sample's (1.04, 1.00). The default must come within 0.06 of that share, keep
-/// 0.8 of that contrast and about the sample's detail. Now (one level on a mesh): marble
-/// 0.049 smeared, 0.83 of the contrast, detail 0.72; cracked stone 0.078, 0.84, 0.66.
-/// Three levels (the default before) smeared the cracked stone's texture (0.19, 0.65 of the
-/// contrast); blending the three corners' lookups per texel, as export did before that,
-/// scored detail 0.55 on the marble.
+/// contrast the sample's (1.04, 1.00). The default must come within 0.04 of that share, keep
+/// 0.83 of that contrast and 0.7 of the sample's detail. Now (one level, the patches keeping
+/// their interiors): marble 0.041 smeared, 0.85 of the contrast, detail 0.85; cracked stone
+/// 0.054, 0.88, 0.76. Before the interiors were kept: marble 0.049, 0.80, 0.72, cracked stone
+/// 0.078, 0.84, 0.66 (which fails the share). Three levels (the default before that)
+/// smeared the cracked stone's texture (0.19, 0.65 of the contrast); blending the three
+/// corners' lookups per texel, as export did before that, scored detail 0.55 on the marble.
 #[test]
 fn an_exported_photo_is_about_as_free_of_smears_as_soler2002() {
     const TEST: &str = "an_exported_photo_is_about_as_free_of_smears_as_soler2002";
@@ -591,13 +592,13 @@ fn an_exported_photo_is_about_as_free_of_smears_as_soler2002() {
         let (soler_smeared, soler_contrast, _) = figures("soler2002");
         let (smeared, contrast, detail) = figures("default");
         assert!(
-            smeared <= soler_smeared + 0.06,
+            smeared <= soler_smeared + 0.04,
             "{name}: smeared {smeared} against soler2002's {soler_smeared}"
         );
         assert!(
-            contrast >= 0.8 * soler_contrast,
+            contrast >= 0.83 * soler_contrast,
             "{name}: contrast {contrast} against soler2002's {soler_contrast}"
         );
-        assert!(detail >= 0.6, "{name}: detail {detail}: a blurred texture");
+        assert!(detail >= 0.7, "{name}: detail {detail}: a blurred texture");
     }
 }

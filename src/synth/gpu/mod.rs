@@ -192,7 +192,8 @@ struct Params {
     query_words: u32,
     fallback: u32,
     p_fallback: u32,
-    _pad: [u32; 3],
+    off_move: u32,
+    _pad: [u32; 2],
 }
 
 /// A grid's shape: columns, rows, template side, whether it wraps.
@@ -583,7 +584,7 @@ impl GpuSynth {
             empty("synth state", vertices * 8, U::STORAGE | U::COPY_DST | U::COPY_SRC),
             init("synth coarse state", &plan.coarse, U::STORAGE),
             init("synth tables", &plan.tables, U::STORAGE),
-            empty("synth pass data", (2 * vertices + 1) * 4, U::STORAGE | U::COPY_DST),
+            empty("synth pass data", (3 * vertices + 1) * 4, U::STORAGE | U::COPY_DST),
             empty("synth counts", plan.texels * 4, U::STORAGE | U::COPY_DST),
             empty("synth outputs", vertices * 16, U::STORAGE | U::COPY_SRC),
             empty("synth candidate lists", plan.scratch_bytes, U::STORAGE),
@@ -863,7 +864,7 @@ fn fits(limits: &wgpu::Limits, plan: &LevelPlan) -> std::result::Result<(), Stri
     let storage = [
         plan.tables.len() * 4,
         plan.vertices * 16,
-        (2 * plan.vertices + 1) * 4,
+        (3 * plan.vertices + 1) * 4,
         plan.texels * 4,
         plan.coarse.len() * 4,
         plan.scratch_bytes,
@@ -900,6 +901,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
     let mut params = level.base;
     params.off_draws = 0;
     params.off_table = level.vertices as u32;
+    params.off_move = 2 * level.vertices as u32 + 1;
     params.choosy = form.choosy.is_some().into();
     params.fresh = 1.0 + job.pass.coherence_bias;
     (params.full, params.list_k) = match form.search {
@@ -920,7 +922,7 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
 }
 
 /// The pass's own data: each vertex's draw (where it has no candidate), then the choosy
-/// factor by use count. A vertex's own coordinate is the forward shift of its own pixel,
+/// factor by use count, then each vertex's factor on moving ([`PassJob::move_costs`]). A vertex's own coordinate is the forward shift of its own pixel,
 /// and stays as it is until the vertex's sub-pass: where it is a candidate texel, the
 /// vertex has a candidate and draws nothing. Only the others draw (as the CPU would: seeded
 /// by the pass and the vertex), or all of them where a full search has no candidate at all.
@@ -945,7 +947,8 @@ fn pass_words(job: &PassJob, form: &Form, state: &State) -> Vec<u32> {
         Some(strength) => choosy_factors(vertices, sample, margin, strength),
         None => vec![1.0; vertices + 1],
     };
-    draws.into_iter().chain(table.iter().map(|f| f.to_bits())).collect()
+    let moves = job.move_costs.map_or_else(|| vec![1.0; vertices], <[f32]>::to_vec);
+    draws.into_iter().chain(table.iter().chain(&moves).map(|f| f.to_bits())).collect()
 }
 
 /// Puts the pass's read-back `words` (the packed state, then four outputs per vertex) into
