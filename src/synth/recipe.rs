@@ -394,10 +394,10 @@ impl Preset {
     /// The patches keep their interiors ([`KeepInteriors`]): a move deeper than the
     /// template's radius inside a patch costs 4×. On a mesh (`bunny-1k8`, 256 texels across,
     /// the exported texture) that took the smeared share 0.071 → 0.049 on the cracked stone
-    /// and 0.037 → 0.030 on marble, contrast 0.85 → 0.88; on planes it changes nothing that
-    /// matters (12 photographs, seeds 0–1: mean repetition 0.0113 → 0.0112, patch energy
-    /// 0.00080 → 0.00084). Costs of 4, 11 and 30 measure alike; a depth of 2/3 radius leaves
-    /// the 50² choc swirl's seams jagged (docs/surfaces.md).
+    /// and 0.037 → 0.030 on marble, contrast 0.85 → 0.88; on planes it changes little (21
+    /// photographs, seeds 0–1: mean repetition 0.0130 → 0.0129, patch energy 0.00111 →
+    /// 0.00115). Costs of 4, 11 and 30 measure alike; a depth of 2/3 radius leaves the 50²
+    /// choc swirl's seams jagged (docs/surfaces.md).
     fn tong_schedule(name: &'static str, paper: &'static str, metric: SquareMetric) -> Self {
         let pass = |template| Pass {
             order: VisitOrder::Interleaved,
