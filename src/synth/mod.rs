@@ -199,7 +199,9 @@ pub fn synthesize(
                     owner = None;
                     start::random_state(target, level_sample, margin, &mut rng)
                 }
-                (Start::Patches { radius }, _) => {
+                (Start::Patches { radius, surface_radius }, _) => {
+                    let on_mesh = matches!(target.neighbourhoods, target::Neighbourhoods::Mesh { .. });
+                    let radius = if on_mesh { surface_radius.unwrap_or(radius) } else { radius };
                     // A patch narrower than the template is all seam: the templates that judge
                     // its placement mostly see its neighbours (and a small periodic sample's
                     // phases then never line up).

@@ -26,6 +26,11 @@ pub enum Start {
     Patches {
         /// Patch radius as a fraction of the coarsest sample level's smaller side.
         radius: f32,
+        /// The radius on a mesh, where it differs (none: `radius`). A mesh's passes mend
+        /// seams less well than a plane's (its templates jitter by up to half a texel), so
+        /// fewer, larger patches keep more of the sample whole there.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        surface_radius: Option<f32>,
     },
     /// Each vertex twice its parent's coordinate plus its offset (Tong §5.1, first pass);
     /// only below the coarsest level.
@@ -391,6 +396,12 @@ impl Preset {
     /// elements at this size; a recipe with a larger radius keeps them
     /// (docs/quality.md).
     ///
+    /// On a mesh the patches stay 0.35 of the side: there the passes mend seams less well,
+    /// and small patches left a 50² sample a mosaic of pieces smaller than its elements
+    /// (`bunny-1k8`, 256 texels across, the exported texture: choc swirl contrast 0.84 →
+    /// 0.98, cracked stone 0.88 → 0.96, with whole swirls and long cracks in Blender; see
+    /// docs/surfaces.md).
+    ///
     /// The patches keep their interiors ([`KeepInteriors`]): a move deeper than the
     /// template's radius inside a patch costs 4×. On a mesh (`bunny-1k8`, 256 texels across,
     /// the exported texture) that took the smeared share 0.071 → 0.049 on the cracked stone
@@ -410,7 +421,7 @@ impl Preset {
             name: name.into(),
             paper: paper.into(),
             coarsest: LevelRecipe {
-                start: Start::Patches { radius: 0.15 },
+                start: Start::Patches { radius: 0.15, surface_radius: Some(0.35) },
                 passes: vec![pass(SquareTemplate::Own(OwnPixels::Full)); 4],
             },
             finer: LevelRecipe {
@@ -611,11 +622,13 @@ impl Preset {
                     recipe.passes.len()
                 ));
             }
-            if let Start::Patches { radius } = recipe.start {
-                if !(radius.is_finite() && radius > 0.0) {
-                    return refuse(format!(
-                        "the {level} level's patch radius must be positive, not {radius}"
-                    ));
+            if let Start::Patches { radius, surface_radius } = recipe.start {
+                for radius in std::iter::once(radius).chain(surface_radius) {
+                    if !(radius.is_finite() && radius > 0.0) {
+                        return refuse(format!(
+                            "the {level} level's patch radius must be positive, not {radius}"
+                        ));
+                    }
                 }
             }
             if let Start::Jittered { texels } = recipe.start {
@@ -991,13 +1004,15 @@ mod tests {
         refused(&|p| p.finer.passes[1].coherence_bias = -1.0, "coherence_bias");
         refused(&|p| p.finer.passes[1].select = Select::Choosy { strength: -0.5 }, "strength");
         refused(&|p| p.finer.passes[1].select = Select::UsePenalty { base: 0.5 }, "base");
-        refused(&|p| p.coarsest.start = Start::Patches { radius: 0.0 }, "patch radius");
+        refused(&|p| p.coarsest.start = Start::Patches { radius: 0.0, surface_radius: None }, "patch radius");
+        let surface_radius = Some(-0.1);
+        refused(&|p| p.coarsest.start = Start::Patches { radius: 0.15, surface_radius }, "patch radius");
         let keep = |depth, move_cost| Some(KeepInteriors { depth, move_cost });
         refused(&|p| p.keep_interiors = keep(-1.0, 4.0), "depth must be 0 or more");
         refused(&|p| p.keep_interiors = keep(1.0, 0.5), "move_cost must be at least 1");
         refused(&|p| p.coarsest.start = Start::Random, "needs patches to keep");
         let mut castellanos = Preset::castellanos();
-        castellanos.coarsest.start = Start::Patches { radius: 0.15 };
+        castellanos.coarsest.start = Start::Patches { radius: 0.15, surface_radius: None };
         castellanos.keep_interiors = keep(1.0, 4.0);
         let e = castellanos.validate().expect_err("isotropic passes").to_string();
         assert!(e.contains("square-template passes only"), "{e}");

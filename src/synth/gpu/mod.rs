@@ -922,9 +922,10 @@ fn pass_params(level: &LevelBuffers, job: &PassJob, form: &Form) -> (Params, usi
 }
 
 /// The pass's own data: each vertex's draw (where it has no candidate), then the choosy
-/// factor by use count, then each vertex's factor on moving ([`PassJob::move_costs`]). A vertex's own coordinate is the forward shift of its own pixel,
-/// and stays as it is until the vertex's sub-pass: where it is a candidate texel, the
-/// vertex has a candidate and draws nothing. Only the others draw (as the CPU would: seeded
+/// factor by use count, then each vertex's factor on moving ([`PassJob::move_costs`]). A
+/// vertex's own coordinate is the forward shift of its own pixel, and stays as it is until
+/// the vertex's sub-pass: where it is a candidate texel, the vertex has a candidate and
+/// draws nothing. Only the others draw (as the CPU would: seeded
 /// by the pass and the vertex), or all of them where a full search has no candidate at all.
 fn pass_words(job: &PassJob, form: &Form, state: &State) -> Vec<u32> {
     let (sample, margin) = (job.sample, square_margin(job.target));
