@@ -294,7 +294,7 @@ pub struct Preset {
 /// moves only where the move is that much better; near a patch's edge it moves freely, so
 /// that the passes still mend the seams.
 ///
-/// Why (docs/surfaces.md, "What erodes a mesh's copies"): on a mesh, vertices inside a copy
+/// Why (docs/surfaces.md, "What eroded a mesh's copies"): on a mesh, vertices inside a copy
 /// take other copies' continuations over the passes, so calm copies grow into detailed ones
 /// and the result smears. A cost on every move stops that but leaves small patches' seams
 /// unmended; the neighbours' predictions cannot tell a copy's inside from its seam on a mesh
@@ -396,7 +396,7 @@ impl Preset {
     /// elements at this size; a recipe with a larger radius keeps them
     /// (docs/quality.md).
     ///
-    /// On a mesh the patches stay 0.35 of the side: there the passes mend seams less well,
+    /// On a mesh the patches are 0.35 of the side: there the passes mend seams less well,
     /// and small patches left a 50² sample a mosaic of pieces smaller than its elements
     /// (`bunny-1k8`, 256 texels across, the exported texture: choc swirl contrast 0.84 →
     /// 0.98, cracked stone 0.88 → 0.96, with whole swirls and long cracks in Blender; see
