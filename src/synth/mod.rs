@@ -214,7 +214,7 @@ pub fn synthesize(
                     let k = search.list_length(level_sample);
                     let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
                     let (state, patch_owner) =
-                        patches(metric, target, level_sample, (margin, patch, k), &mut rng)?;
+                        patches(metric, target, (level_sample, &levels[0]), (margin, patch, k), &mut rng)?;
                     owner = preset.keep_interiors.map(|_| patch_owner);
                     state
                 }
@@ -458,26 +458,31 @@ fn square_pass<'a, M: Metric + Sync>(
     pass::run_scheduled_pass(target, state, level_sample, make, plan, order, rng)
 }
 
-/// Random patches on `target`, their seams matched with the metric `kind`.
-fn patches(
+/// Random patches on `target`, their seams matched with the metric `kind`; whether the
+/// sample has edges of its own is judged on the `finest` level, whose texels are the
+/// sample's own rather than averages reaching across its border.
+fn patches<'a>(
     kind: MetricKind,
     target: &TargetLevel,
-    sample: &SampleLevel,
+    (sample, finest): (&'a SampleLevel, &'a SampleLevel),
     sizes: (usize, f32, usize),
     rng: &mut ChaCha8Rng,
 ) -> Result<(State, Vec<u32>)> {
     let template = target.template;
+    let margin = sizes.0;
     Ok(match kind {
         MetricKind::Gamma => {
-            start::patch_state(target, sample, &GammaMetric { sample, template }, sizes, rng)
+            let edges = start::own_edges(finest, &GammaMetric { sample: finest, template }, margin);
+            start::patch_state(target, sample, &GammaMetric { sample, template }, sizes, edges, rng)
         }
-        MetricKind::Appearance => {
-            let map = sample.appearance.as_ref().expect("checked in synthesize");
-            start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
-        }
-        MetricKind::Colour => {
-            let map = sample.colour.as_ref().expect("checked in synthesize");
-            start::patch_state(target, sample, &AppearanceMetric { map, template }, sizes, rng)
+        MetricKind::Appearance | MetricKind::Colour => {
+            let map = |level: &'a SampleLevel| {
+                let map = if kind == MetricKind::Colour { &level.colour } else { &level.appearance };
+                map.as_ref().expect("checked in synthesize")
+            };
+            let edges = start::own_edges(finest, &AppearanceMetric { map: map(finest), template }, margin);
+            let metric = AppearanceMetric { map: map(sample), template };
+            start::patch_state(target, sample, &metric, sizes, edges, rng)
         }
         MetricKind::Adaptive => {
             return Err(Error::invalid(

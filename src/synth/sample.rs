@@ -374,6 +374,13 @@ impl SampleLevel {
         [wrap(x, self.width) as i32, wrap(y, self.height) as i32]
     }
 
+    /// The first and last candidate texel across a side of `n` texels (the band patches
+    /// wrap around), on a sample that does not tile.
+    pub fn band_ends(&self, n: usize, margin: usize) -> (i64, i64) {
+        let r = self.side_margin(n, margin);
+        (r, n as i64 - 1 - r)
+    }
+
     /// Whether (x, y) is a candidate texel: `margin` inside the sample's edges (any texel of
     /// a tileable sample).
     pub fn is_candidate(&self, x: i64, y: i64, margin: usize) -> bool {

@@ -54,11 +54,15 @@ pub fn random_texel(sample: &SampleLevel, margin: usize, rng: &mut ChaCha8Rng) -
 /// does not tile: the wrap is one more seam, whereas patches kept inside the sample use its
 /// middle far more than its edges (measured: 7% of the output from the most-used 1% of
 /// texels, against 2.6% wrapped).
+///
+/// Along an axis where the sample has edges of its own ([`own_edges`]) a patch is moved,
+/// where it fits, so that its copy does not wrap.
 pub(crate) fn patch_state<M: Metric>(
     level: &TargetLevel,
     sample: &SampleLevel,
     metric: &M,
     (margin, patch_radius, k): (usize, f32, usize),
+    own_edges: [bool; 2],
     rng: &mut ChaCha8Rng,
 ) -> (State, Vec<u32>) {
     let graph = Steps::of(level);
@@ -78,6 +82,8 @@ pub(crate) fn patch_state<M: Metric>(
     for patch in seam_order(&graph, &owner, seeds.len()) {
         let seam = seam_pairs(&graph, &members[patch], &owner, &placed, &uv, sample, margin);
         let mut candidates = placements(&seam, &position, sample, (margin, k), rng);
+        let inside = Footprint::of(&members[patch], &position).inside(sample, margin, own_edges);
+        candidates.iter_mut().for_each(|c| *c = inside(*c));
         keep_apart(&mut candidates, &continuations(&seam, &position), sample, (margin, patch_radius));
         let cost = |c: [i64; 2]| -> f32 {
             let seam_cost: f32 =
@@ -93,6 +99,91 @@ pub(crate) fn patch_state<M: Metric>(
         placed[patch] = true;
     }
     (with_labels(uv, sample), owner)
+}
+
+/// A wrap whose [`wrap_unlikeness`] is above this joins texels far less alike than any two
+/// unrelated ones: the sample has edges of its own (a board's dark and light edges, a
+/// frame), and a patch whose copy wraps there shows them as a bar. On the 23 photographs of
+/// ../shared/data/textures, the finest level: a pine board's sides 27.6; every other axis
+/// −0.4–0.5 where the sample tiles and 0.6–2.4 where it does not (one row or column is a
+/// small sample of the mean, so unrelated columns spread about 1).
+const OWN_EDGES: f32 = 4.0;
+
+/// Per axis (x, y), whether `sample` has edges of its own there: its wrap is
+/// [`OWN_EDGES`] unlike. Always false on a tileable sample.
+pub(crate) fn own_edges<M: Metric>(sample: &SampleLevel, metric: &M, margin: usize) -> [bool; 2] {
+    [0, 1].map(|axis| !sample.tileable && wrap_unlikeness(sample, metric, margin, axis) > OWN_EDGES)
+}
+
+/// How unlike the texels that wrapping the candidate band along `axis` (0: x, 1: y) makes
+/// neighbours are, on a scale where 0 is the sample's own neighbouring texels and 1 texels
+/// half the band apart.
+fn wrap_unlikeness<M: Metric>(sample: &SampleLevel, metric: &M, margin: usize, axis: usize) -> f32 {
+    let sides = [sample.width, sample.height];
+    let (lo, hi) = sample.band_ends(sides[axis], margin);
+    let (first_row, last_row) = sample.band_ends(sides[1 - axis], margin);
+    let half = (hi - lo + 1) / 2;
+    let mean_distance = |gap: i64, wrapped: bool| -> f64 {
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for row in first_row..=last_row {
+            let at = |along: i64| {
+                let mut t = [row as i32; 2];
+                t[axis] = along as i32;
+                t
+            };
+            let pairs: Vec<(i64, i64)> =
+                if wrapped { vec![(hi, lo)] } else { (lo..=hi - gap).map(|a| (a, a + gap)).collect() };
+            for (a, b) in pairs {
+                sum += f64::from(metric.texel_distance(at(a), at(b)));
+                n += 1;
+            }
+        }
+        sum / n.max(1) as f64
+    };
+    let (wrap, near, far) = (mean_distance(0, true), mean_distance(1, false), mean_distance(half, false));
+    ((wrap - near) / (far - near).max(f64::MIN_POSITIVE)) as f32
+}
+
+/// The box of a patch's members' offsets from its seed.
+struct Footprint {
+    low: [i64; 2],
+    high: [i64; 2],
+}
+
+impl Footprint {
+    fn of(members: &[u32], position: &[[f32; 2]]) -> Self {
+        let offsets = || members.iter().map(|&v| position[v as usize].map(|p| p.round() as i64));
+        let extreme = |pick: fn(i64, i64) -> i64, start: i64| {
+            [0, 1].map(|axis| offsets().map(|o| o[axis]).fold(start, pick))
+        };
+        Footprint { low: extreme(i64::min, i64::MAX), high: extreme(i64::max, i64::MIN) }
+    }
+
+    /// Moves a place the least along each axis of `own_edges` so that the patch's copy
+    /// lies inside the sample's candidate band, where it fits; elsewhere the copy wraps.
+    /// Moving rather than refusing keeps the texels near the edges in use.
+    fn inside(
+        &self,
+        sample: &SampleLevel,
+        margin: usize,
+        own_edges: [bool; 2],
+    ) -> impl Fn([i64; 2]) -> [i64; 2] {
+        let sides = [sample.width, sample.height];
+        let range = [0, 1].map(|axis| {
+            let (lo, hi) = sample.band_ends(sides[axis], margin);
+            let (first, last) = (lo - self.low[axis], hi - self.high[axis]);
+            (own_edges[axis] && first <= last).then_some((first, last))
+        });
+        move |place: [i64; 2]| {
+            let mut moved = place;
+            for axis in 0..2 {
+                if let Some((first, last)) = range[axis] {
+                    moved[axis] = place[axis].clamp(first, last);
+                }
+            }
+            moved
+        }
+    }
 }
 
 /// Per vertex of `level` whose patch is `owner` (from [`patch_state`], inherited down the
@@ -517,8 +608,14 @@ mod tests {
         assert_eq!(TargetLevel::new(0, mesh).candidate_margin(2), 2);
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let used = |margin: usize| {
-            let (state, _) =
-                patch_state(plane, &sample, &metric, (margin, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
+            let (state, _) = patch_state(
+                plane,
+                &sample,
+                &metric,
+                (margin, 4.0, 4),
+                [false; 2],
+                &mut ChaCha8Rng::seed_from_u64(7),
+            );
             let xs = state.uv.iter().flat_map(|&[x, y]| [x, y]);
             (xs.clone().min().unwrap(), xs.max().unwrap())
         };
@@ -534,7 +631,7 @@ mod tests {
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let (state, owner) =
-            patch_state(level, &sample, &metric, (2, 4.0, 4), &mut ChaCha8Rng::seed_from_u64(7));
+            patch_state(level, &sample, &metric, (2, 4.0, 4), [false; 2], &mut ChaCha8Rng::seed_from_u64(7));
         // Right neighbours continue their patch (uv + (1, 0)) except across a seam; the seams
         // are a minority at this patch size.
         let coherent = (0..40 * 40)
@@ -557,6 +654,54 @@ mod tests {
         assert!(inherited.iter().enumerate().all(|(v, &o)| o == owner[(v / 80 / 2) * 40 + v % 80 / 2]));
     }
 
+    /// A sample with edges of its own along x: a column at each end of its candidate band
+    /// whose texton is unlike every other, and unlike each other (a board's dark and light
+    /// edges).
+    fn sample_with_side_edges() -> SampleLevel {
+        let mut sample = periodic_sample(4);
+        sample.tileable = false;
+        let n = sample.textons;
+        sample.gamma[4 * n + 4] = 9.0;
+        (0..4).for_each(|i| (sample.gamma[4 * n + i], sample.gamma[i * n + 4]) = (0.0, 0.0));
+        for y in 0..16 {
+            sample.labels[y * 16 + 1] = 4;
+            sample.labels[y * 16 + 14] = 0;
+        }
+        sample
+    }
+
+    #[test]
+    fn own_edges_are_found_where_the_wrap_joins_unlike_texels_only() {
+        let metric = |sample| crate::synth::metric::GammaMetric { sample, template: 5 };
+        let edged = sample_with_side_edges();
+        assert_eq!(own_edges(&edged, &metric(&edged), 1), [true, false]);
+        let mut plain = periodic_sample(4);
+        plain.tileable = false;
+        assert_eq!(own_edges(&plain, &metric(&plain), 1), [false, false]);
+        let mut tileable = edged.clone();
+        tileable.tileable = true;
+        assert_eq!(own_edges(&tileable, &metric(&tileable), 1), [false, false]);
+    }
+
+    /// Along an axis with edges of its own, no patch's copy wraps (it fits the band here);
+    /// without, some do.
+    #[test]
+    fn patches_do_not_wrap_across_a_sample_s_own_edges() {
+        let sample = sample_with_side_edges();
+        let level = &grid_levels(40, 40, 1, 5, 3)[0];
+        let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
+        let wrapped_steps = |edges: [bool; 2]| {
+            let (state, owner) =
+                patch_state(level, &sample, &metric, (1, 4.0, 4), edges, &mut ChaCha8Rng::seed_from_u64(7));
+            (0..40 * 40)
+                .filter(|&v| v % 40 < 39 && owner[v] == owner[v + 1])
+                .filter(|&v| state.uv[v + 1][0] < state.uv[v][0])
+                .count()
+        };
+        assert_eq!(wrapped_steps([true, false]), 0);
+        assert!(wrapped_steps([false, false]) > 0);
+    }
+
     /// A move costs more only deeper inside a patch than the depth (in radii of the 5×5
     /// template: 2.5 texels): a vertex beside another patch costs nothing more, and the
     /// costly ones are those farther from every other patch.
@@ -573,7 +718,8 @@ mod tests {
             assert_eq!(cost, expected, "vertex {v}, {from_edge} from the edge");
         }
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let (_, owner) = patch_state(level, &sample, &metric, (2, 6.0, 4), &mut ChaCha8Rng::seed_from_u64(3));
+        let (_, owner) =
+            patch_state(level, &sample, &metric, (2, 6.0, 4), [false; 2], &mut ChaCha8Rng::seed_from_u64(3));
         let inside = move_costs(level, &owner, keep).iter().filter(|&&c| c > 1.0).count();
         assert!((1..900 / 2).contains(&inside), "{inside} of 900 deep inside patches of radius 6");
     }

@@ -144,6 +144,32 @@ fn assert_default_repetition(test: &str, crops: &[(&str, u32)], bound: f64) {
     }
 }
 
+/// A pine board (../shared) is dark along its left side and light along its right: where
+/// a patch's copy wrapped across the sample, the two edges met inside it as a bar (3–4 per
+/// result). Horizontally adjacent output texels that copy the outermost three columns of
+/// opposite sides were 0.14–0.29% of the pairs (seeds 0–3) before patches were
+/// kept from wrapping across a sample's own edges, none since; the bound is a third of the
+/// fewest before.
+#[test]
+fn the_default_does_not_join_a_board_s_two_edges() {
+    let test = "the_default_does_not_join_a_board_s_two_edges";
+    let Some(path) = btfsynth::testdata::shared_data(test, "textures/gimp-Wood_pine.png") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyse(&path, "0,0,64,56", &dir.path().join("pine"), &[]);
+    for seed in ["0", "1"] {
+        let out = plane(&analysis, "224x224", &dir.path().join(seed), &["--seed", seed]);
+        let (w, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let (left, right) = (|x: i32| x <= 2, |x: i32| x >= 64 - 3);
+        let pairs = state.uv.chunks_exact(w).flat_map(|row| row.windows(2));
+        let (joined, all) = pairs.fold((0usize, 0usize), |(joined, all), pair| {
+            let (a, b) = (pair[0][0], pair[1][0]);
+            (joined + usize::from(right(a) && left(b) || left(a) && right(b)), all + 1)
+        });
+        let share = joined as f64 / all as f64;
+        assert!(share < 0.0005, "seed {seed}: {joined} of {all} adjacent pairs join the board's two edges");
+    }
+}
+
 /// The bundled (shippable) photograph, so a plain clone checks quality too.
 #[test]
 fn the_bundled_photograph_neither_collapses_nor_smears() {
