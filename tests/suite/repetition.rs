@@ -1,5 +1,5 @@
 //! `eval`'s repetition figure, through the real CLI on a real photograph (the bundled
-//! gravel): pieces of the sample on a lattice are flagged, the same pieces at random offsets
+//! gravel, as a 128² and a 64² sample): pieces of the sample on a lattice are flagged, the same pieces at random offsets
 //! are not, a whole-sample tiling is flagged, and a periodic sample's periodic continuation
 //! is not penalised.
 
@@ -12,6 +12,7 @@ use serde_json::Value;
 use std::path::Path;
 
 const SIDE: u32 = 384;
+/// The periodic sample's period.
 const PIECE: u32 = 32;
 
 fn gravel() -> RgbImage {
@@ -38,27 +39,37 @@ fn pieces(sample: &RgbImage, side: u32, rng: &mut ChaCha8Rng) -> Vec<RgbImage> {
         .collect()
 }
 
+/// On a 128² sample and on a 64² one (the size of most pattern libraries), pieces of a
+/// quarter of the sample's side.
 #[test]
 fn eval_flags_pieces_on_a_lattice_but_not_the_same_pieces_at_random_offsets() {
+    for side in [128, 64] {
+        lattice_against_random_offsets(side, side / 4);
+    }
+}
+
+fn lattice_against_random_offsets(side: u32, piece_side: u32) {
     let dir = tempfile::tempdir().unwrap();
-    let analysis = common::analyze_gravel(dir.path(), "analysis", "0,0,128,128");
-    let sample = gravel();
+    let analysis = common::analyze_gravel(dir.path(), "analysis", &format!("0,0,{side},{side}"));
+    let sample = image::imageops::crop_imm(&gravel(), 0, 0, side, side).to_image();
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    // The lattice: a 3×3 arrangement of nine pieces repeated, so each recurs every 96 px.
-    let cut = pieces(&sample, PIECE, &mut rng);
+    // The lattice: a 3×3 arrangement of nine pieces repeated, so each recurs every three
+    // pieces.
+    let cut = pieces(&sample, piece_side, &mut rng);
     let mut lattice = RgbImage::new(SIDE, SIDE);
-    for (i, j) in (0..SIDE / PIECE).flat_map(|j| (0..SIDE / PIECE).map(move |i| (i, j))) {
+    for (i, j) in (0..SIDE / piece_side).flat_map(|j| (0..SIDE / piece_side).map(move |i| (i, j))) {
         let piece = &cut[((j % 3) * 3 + i % 3) as usize];
-        image::imageops::replace(&mut lattice, piece, (i * PIECE) as i64, (j * PIECE) as i64);
+        image::imageops::replace(&mut lattice, piece, (i * piece_side) as i64, (j * piece_side) as i64);
     }
     // The same kind of pieces (larger, so that they cover) pasted at jittered places in a
     // random order, each a random one of the nine.
-    let big = pieces(&sample, PIECE + 16, &mut rng);
+    let (big, jitter) = (pieces(&sample, piece_side * 3 / 2, &mut rng), piece_side as i64 / 4);
     let mut scattered = RgbImage::new(SIDE, SIDE);
-    let mut places: Vec<(i64, i64)> = (-1..=(SIDE / PIECE) as i64)
-        .flat_map(|j| (-1..=(SIDE / PIECE) as i64).map(move |i| (i, j)))
+    let mut places: Vec<(i64, i64)> = (-1..=(SIDE / piece_side) as i64)
+        .flat_map(|j| (-1..=(SIDE / piece_side) as i64).map(move |i| (i, j)))
         .map(|(i, j)| {
-            (i * PIECE as i64 + rng.random_range(-8..=8), j * PIECE as i64 + rng.random_range(-8..=8))
+            let mut at = |k: i64| k * piece_side as i64 + rng.random_range(-jitter..=jitter);
+            (at(i), at(j))
         })
         .collect();
     rand::seq::SliceRandom::shuffle(places.as_mut_slice(), &mut rng);
@@ -67,17 +78,17 @@ fn eval_flags_pieces_on_a_lattice_but_not_the_same_pieces_at_random_offsets() {
     }
     let (on_lattice, at_random) =
         (repetition(&analysis, &lattice, "lattice"), repetition(&analysis, &scattered, "scattered"));
-    assert!(on_lattice > 0.4, "pieces on a lattice: repetition {on_lattice}");
-    assert!(at_random < 0.1, "the same pieces at random offsets: repetition {at_random}");
-    assert!(on_lattice > 4.0 * at_random, "{on_lattice} vs {at_random}");
+    assert!(on_lattice > 0.4, "{side}²: pieces on a lattice: repetition {on_lattice}");
+    assert!(at_random < 0.1, "{side}²: the same pieces at random offsets: repetition {at_random}");
+    assert!(on_lattice > 4.0 * at_random, "{side}²: {on_lattice} vs {at_random}");
 
     // A tiling of the whole sample is a lattice too.
     let mut tiled = RgbImage::new(SIDE, SIDE);
-    for (i, j) in (0..3).flat_map(|j| (0..3).map(move |i| (i, j))) {
-        image::imageops::replace(&mut tiled, &sample, i * 128, j * 128);
+    for (i, j) in (0..SIDE.div_ceil(side)).flat_map(|j| (0..SIDE.div_ceil(side)).map(move |i| (i, j))) {
+        image::imageops::replace(&mut tiled, &sample, (i * side) as i64, (j * side) as i64);
     }
     let whole = repetition(&analysis, &tiled, "tiled");
-    assert!(whole > 0.4, "a whole-sample tiling: repetition {whole}");
+    assert!(whole > 0.4, "{side}²: a whole-sample tiling: repetition {whole}");
 }
 
 /// A periodic sample (a 32² piece of the photograph tiled 4×4) recurs in itself, so its
