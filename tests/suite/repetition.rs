@@ -1,7 +1,7 @@
 //! `eval`'s repetition figure, through the real CLI on a real photograph (the bundled
-//! gravel, as a 128² and a 64² sample): pieces of the sample on a lattice are flagged, the same pieces at random offsets
-//! are not, a whole-sample tiling is flagged, and a periodic sample's periodic continuation
-//! is not penalised.
+//! gravel, as a 128² and a 64² sample): pieces of the sample on a lattice are flagged, the
+//! same pieces at random offsets are not, a whole-sample tiling is flagged, and a periodic
+//! sample's periodic continuation is not penalised.
 
 use crate::common;
 
