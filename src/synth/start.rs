@@ -122,25 +122,21 @@ fn wrap_unlikeness<M: Metric>(sample: &SampleLevel, metric: &M, margin: usize, a
     let sides = [sample.width, sample.height];
     let (lo, hi) = sample.band_ends(sides[axis], margin);
     let (first_row, last_row) = sample.band_ends(sides[1 - axis], margin);
-    let half = (hi - lo + 1) / 2;
-    let mean_distance = |gap: i64, wrapped: bool| -> f64 {
-        let (mut sum, mut n) = (0.0f64, 0usize);
-        for row in first_row..=last_row {
-            let at = |along: i64| {
-                let mut t = [row as i32; 2];
-                t[axis] = along as i32;
-                t
-            };
-            let pairs: Vec<(i64, i64)> =
-                if wrapped { vec![(hi, lo)] } else { (lo..=hi - gap).map(|a| (a, a + gap)).collect() };
-            for (a, b) in pairs {
-                sum += f64::from(metric.texel_distance(at(a), at(b)));
-                n += 1;
-            }
-        }
-        sum / n.max(1) as f64
+    let at = |row: i64, along: i64| {
+        let mut t = [row as i32; 2];
+        t[axis] = along as i32;
+        t
     };
-    let (wrap, near, far) = (mean_distance(0, true), mean_distance(1, false), mean_distance(half, false));
+    // Mean distance between the texels of `pairs` (positions along the axis), over the rows.
+    let mean_distance = |pairs: &[(i64, i64)]| -> f64 {
+        let by_row = (first_row..=last_row).flat_map(|row| pairs.iter().map(move |&pair| (row, pair)));
+        let sum: f64 =
+            by_row.map(|(row, (a, b))| f64::from(metric.texel_distance(at(row, a), at(row, b)))).sum();
+        sum / (pairs.len() * (last_row - first_row + 1) as usize).max(1) as f64
+    };
+    let apart = |gap: i64| -> Vec<(i64, i64)> { (lo..=hi - gap).map(|a| (a, a + gap)).collect() };
+    let (wrap, near, far) =
+        (mean_distance(&[(hi, lo)]), mean_distance(&apart(1)), mean_distance(&apart((hi - lo + 1) / 2)));
     ((wrap - near) / (far - near).max(f64::MIN_POSITIVE)) as f32
 }
 
