@@ -345,8 +345,8 @@ impl TryFrom<PresetRecord> for Preset {
         };
         let coarsest = level("coarsest", r.coarsest)?;
         let finer = level("finer", r.finer)?;
-        let keep_interiors = r.keep_interiors;
-        let preset = Preset { name: name.clone(), paper: r.paper, coarsest, finer, keep_interiors };
+        let preset =
+            Preset { name: name.clone(), paper: r.paper, coarsest, finer, keep_interiors: r.keep_interiors };
         preset.validate()?;
         Ok(preset)
     }

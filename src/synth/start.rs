@@ -82,8 +82,10 @@ pub(crate) fn patch_state<M: Metric>(
     for patch in seam_order(&graph, &owner, seeds.len()) {
         let seam = seam_pairs(&graph, &members[patch], &owner, &placed, &uv, sample, margin);
         let mut candidates = placements(&seam, &position, sample, (margin, k), rng);
-        let inside = Footprint::of(&members[patch], &position).inside(sample, margin, own_edges);
-        candidates.iter_mut().for_each(|c| *c = inside(*c));
+        if own_edges.contains(&true) {
+            let inside = Footprint::of(&members[patch], &position).inside(sample, margin, own_edges);
+            candidates.iter_mut().for_each(|c| *c = inside(*c));
+        }
         keep_apart(&mut candidates, &continuations(&seam, &position), sample, (margin, patch_radius));
         let cost = |c: [i64; 2]| -> f32 {
             let seam_cost: f32 =
