@@ -20,6 +20,7 @@ pub mod isotropic;
 pub mod isotropic_stencil;
 pub(crate) mod job;
 pub mod kdtrees;
+pub mod lattice;
 pub mod metric;
 pub mod neighbourhood;
 pub mod pass;
@@ -213,8 +214,13 @@ pub fn synthesize(
                     );
                     let k = search.list_length(level_sample);
                     let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
-                    let (state, patch_owner) =
-                        patches(metric, target, (level_sample, &levels[0]), (margin, patch, k), &mut rng)?;
+                    let (state, patch_owner) = patches(
+                        metric,
+                        target,
+                        (level_sample, &sample.levels),
+                        (margin, patch, k),
+                        &mut rng,
+                    )?;
                     owner = preset.keep_interiors.map(|_| patch_owner);
                     state
                 }
@@ -464,25 +470,37 @@ fn square_pass<'a, M: Metric + Sync>(
 fn patches<'a>(
     kind: MetricKind,
     target: &TargetLevel,
-    (sample, finest): (&'a SampleLevel, &'a SampleLevel),
+    (sample, levels): (&'a SampleLevel, &'a [SampleLevel]),
     sizes: (usize, f32, usize),
     rng: &mut ChaCha8Rng,
 ) -> Result<(State, Vec<u32>)> {
     let template = target.template;
     let margin = sizes.0;
+    let finest = &levels[0];
+    let coarser = finest.width as f32 / sample.width as f32;
+    // Lattice cells are laid on planes only: on a mesh a lattice's phase cannot be kept
+    // around the surface, and whether in-phase copies serve a model is not yet measured.
+    let on_plane = matches!(target.neighbourhoods, target::Neighbourhoods::Grid { .. });
+    let layout = |own_edges, lattice: &dyn Fn() -> Option<lattice::Lattice>| start::Layout {
+        own_edges,
+        lattice: if on_plane { lattice().map(|l| l.scaled(coarser)) } else { None },
+    };
     Ok(match kind {
         MetricKind::Gamma => {
-            let edges = start::own_edges(finest, &GammaMetric { sample: finest, template }, margin);
-            start::patch_state(target, sample, &GammaMetric { sample, template }, sizes, edges, rng)
+            let metric = |level| GammaMetric { sample: level, template };
+            let edges = start::own_edges(finest, &metric(finest), margin);
+            let layout = layout(edges, &|| lattice::detect(levels, |l| Some(metric(l))));
+            start::patch_state(target, sample, &metric(sample), sizes, layout, rng)
         }
         MetricKind::Appearance | MetricKind::Colour => {
-            let map = |level: &'a SampleLevel| {
+            let metric_if_mapped = |level: &'a SampleLevel| {
                 let map = if kind == MetricKind::Colour { &level.colour } else { &level.appearance };
-                map.as_ref().expect("checked in synthesize")
+                map.as_ref().map(|map| AppearanceMetric { map, template })
             };
-            let edges = start::own_edges(finest, &AppearanceMetric { map: map(finest), template }, margin);
-            let metric = AppearanceMetric { map: map(sample), template };
-            start::patch_state(target, sample, &metric, sizes, edges, rng)
+            let metric = |level| metric_if_mapped(level).expect("checked in synthesize");
+            let edges = start::own_edges(finest, &metric(finest), margin);
+            let layout = layout(edges, &|| lattice::detect(levels, metric_if_mapped));
+            start::patch_state(target, sample, &metric(sample), sizes, layout, rng)
         }
         MetricKind::Adaptive => {
             return Err(Error::invalid(

@@ -2,11 +2,12 @@
 //! inherited from the coarser level (Tong §5.1, first pass).
 
 use super::engine::State;
+use super::lattice::Lattice;
 use super::metric::Metric;
 use super::recipe::KeepInteriors;
 use super::sample::SampleLevel;
-use super::target::TargetLevel;
-use rand::seq::SliceRandom;
+use super::target::{Neighbourhoods, TargetLevel};
+use rand::seq::{IndexedRandom, SliceRandom};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use std::cmp::Reverse;
@@ -62,11 +63,16 @@ pub(crate) fn patch_state<M: Metric>(
     sample: &SampleLevel,
     metric: &M,
     (margin, patch_radius, k): (usize, f32, usize),
-    own_edges: [bool; 2],
+    layout: Layout,
     rng: &mut ChaCha8Rng,
 ) -> (State, Vec<u32>) {
     let graph = Steps::of(level);
-    let seeds = spread_seeds(&graph, patch_radius, rng);
+    let cells = layout.lattice.zip(plane_grid(level));
+    let seeds = match cells {
+        Some((lattice, width)) => cell_seeds(level.vertices, width, &lattice, rng),
+        None => spread_seeds(&graph, patch_radius, rng),
+    };
+    let centre = cells.map(|(lattice, _)| cell_centre(sample, metric, &lattice, margin));
     let (owner, position) = graph.nearest_seed(&seeds);
     let mut members = vec![Vec::new(); seeds.len()];
     for v in 0..level.vertices {
@@ -77,16 +83,33 @@ pub(crate) fn patch_state<M: Metric>(
         sample.wrap_into_candidates(c[0] + o[0], c[1] + o[1], margin)
     };
     let mut uv = vec![[0i32; 2]; level.vertices];
-    let mut placed = vec![false; seeds.len()];
+    let mut places: Vec<Option<[i64; 2]>> = vec![None; seeds.len()];
     let mut uses = Uses::new(sample, margin, level.vertices);
     for patch in seam_order(&graph, &owner, seeds.len()) {
-        let seam = seam_pairs(&graph, &members[patch], &owner, &placed, &uv, sample, margin);
-        let mut candidates = placements(&seam, &position, sample, (margin, k), rng);
-        if own_edges.contains(&true) {
-            let inside = Footprint::of(&members[patch], &position).inside(sample, margin, own_edges);
+        let seam = seam_pairs(&graph, &members[patch], &owner, &places, &uv, sample, margin);
+        let footprint = Footprint::of(&members[patch], &position);
+        let continued = continuations(&seam, &position);
+        let mut apart_from = continued.clone();
+        let mut candidates = match layout.lattice {
+            Some(lattice) if !seam.is_empty() => in_phase(&continued, &lattice, &footprint, sample, margin),
+            // The first patch of a part: a whole number of periods from the cell centre.
+            Some(lattice) if centre.is_some() => {
+                let first = in_phase(&[centre.unwrap_or_default()], &lattice, &footprint, sample, margin);
+                first.choose(rng).into_iter().copied().collect()
+            }
+            _ => placements(&seam, &position, sample, (margin, k), rng),
+        };
+        if layout.lattice.is_some() {
+            // On a lattice the places are few, and among them are the neighbours' own cells:
+            // the same element twice side by side is the lattice of copies at its plainest.
+            let neighbours = members[patch].iter().flat_map(|&v| graph.neighbours(v as usize));
+            apart_from.extend(neighbours.filter_map(|(u, ..)| places[owner[u] as usize]));
+        }
+        if layout.own_edges.contains(&true) {
+            let inside = footprint.inside(sample, margin, layout.own_edges);
             candidates.iter_mut().for_each(|c| *c = inside(*c));
         }
-        keep_apart(&mut candidates, &continuations(&seam, &position), sample, (margin, patch_radius));
+        keep_apart(&mut candidates, &apart_from, sample, (margin, patch_radius));
         let cost = |c: [i64; 2]| -> f32 {
             let seam_cost: f32 =
                 seam.iter().map(|&(v, predicted)| metric.texel_distance(place(c, v), predicted)).sum();
@@ -98,9 +121,150 @@ pub(crate) fn patch_state<M: Metric>(
             uv[v as usize] = place(best, v as usize);
             uses.add(uv[v as usize]);
         }
-        placed[patch] = true;
+        places[patch] = Some(best);
     }
     (with_labels(uv, sample), owner)
+}
+
+/// What the start knows of the sample as a whole, besides its texels.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Layout {
+    /// Per axis, whether the sample has edges of its own there ([`own_edges`]).
+    pub own_edges: [bool; 2],
+    /// The sample's lattice in texels of the level patches are placed on, if it is one
+    /// ([`super::lattice::detect`]).
+    pub lattice: Option<Lattice>,
+}
+
+/// Continuations to move by whole periods ([`in_phase`]), spread along the seam.
+const PHASE_SOURCES: usize = 8;
+/// The most periods a place is moved by along either.
+const MOST_PERIODS: i64 = 8;
+
+/// On a lattice sample, the places in phase with the placed neighbours: each continuation
+/// of a neighbour's copy moved by whole periods, those whose copy stays inside the band
+/// (wrapping there would shift the phase, the band not being a whole number of periods)
+/// unless the sample tiles or no place fits. Random places would cut every element the
+/// patch's edge crosses against a misplaced one: on a tiled floor, joints that jump.
+fn in_phase(
+    continued: &[[i64; 2]],
+    lattice: &Lattice,
+    footprint: &Footprint,
+    sample: &SampleLevel,
+    margin: usize,
+) -> Vec<[i64; 2]> {
+    let sides = [sample.width, sample.height];
+    let shortest = lattice.periods.iter().map(|p| p[0].hypot(p[1])).fold(f32::INFINITY, f32::min);
+    let reach = ((sides[0].max(sides[1]) as f32 / shortest.max(1.0)).ceil() as i64 + 1).min(MOST_PERIODS);
+    let step = continued.len().div_ceil(PHASE_SOURCES).max(1);
+    let mut all = Vec::new();
+    for &c in continued.iter().step_by(step) {
+        for n0 in -reach..=reach {
+            for n1 in -reach..=reach {
+                let s = lattice.shift([n0, n1]);
+                all.push([c[0] + s[0], c[1] + s[1]]);
+            }
+        }
+    }
+    let fits = |p: &[i64; 2]| {
+        (0..2).all(|axis| {
+            let (lo, hi) = sample.band_ends(sides[axis], margin);
+            lo <= p[axis] + footprint.low[axis] && p[axis] + footprint.high[axis] <= hi
+        })
+    };
+    if !sample.tileable && all.iter().any(fits) {
+        all.retain(fits);
+    }
+    all.sort_unstable();
+    all.dedup();
+    all
+}
+
+/// A plane's grid width (its vertices row by row), `None` on a mesh.
+fn plane_grid(level: &TargetLevel) -> Option<usize> {
+    match level.neighbourhoods {
+        Neighbourhoods::Grid { width, .. } => Some(width),
+        Neighbourhoods::Mesh { .. } => None,
+    }
+}
+
+/// On a plane and a lattice sample, one seed per cell of the lattice (at a random phase):
+/// every patch is then one cell, and placed with its seed on a [`cell_centre`] of the
+/// sample its edges run where neighbouring elements meet (a tiled floor's joints), so every
+/// element is copied whole (after the near-regular textures of Liu, Lin and Hays 2004).
+fn cell_seeds(vertices: usize, width: usize, lattice: &Lattice, rng: &mut ChaCha8Rng) -> Vec<usize> {
+    let height = vertices / width.max(1);
+    let [a, b] = lattice.periods;
+    let origin = [rng.random_range(0.0..1.0f32), rng.random_range(0.0..1.0f32)];
+    // Lattice coordinates of the grid's corners bound the cells to visit.
+    let det = a[0] * b[1] - a[1] * b[0];
+    let coords = |x: f32, y: f32| [(x * b[1] - y * b[0]) / det, (a[0] * y - a[1] * x) / det];
+    let corners = [[0.0, 0.0], [width as f32, 0.0], [0.0, height as f32], [width as f32, height as f32]]
+        .map(|[x, y]| coords(x, y));
+    let range = |i: usize| {
+        let (lo, hi) = corners.iter().fold((f32::MAX, f32::MIN), |(lo, hi), c| (lo.min(c[i]), hi.max(c[i])));
+        (lo.floor() as i64 - 1)..=(hi.ceil() as i64 + 1)
+    };
+    let mut seeds = Vec::new();
+    for i in range(0) {
+        for j in range(1) {
+            let (u, v) = (origin[0] + i as f32, origin[1] + j as f32);
+            let [x, y] = [u * a[0] + v * b[0], u * a[1] + v * b[1]].map(|c| c.round() as i64);
+            if (0..width as i64).contains(&x) && (0..height as i64).contains(&y) {
+                seeds.push(y as usize * width + x as usize);
+            }
+        }
+    }
+    seeds.sort_unstable();
+    seeds.dedup();
+    if seeds.is_empty() {
+        seeds.push(0);
+    }
+    seeds
+}
+
+/// The texel of the sample's band whose lattice cell around it has the cheapest edges: where
+/// each edge texel is most like the texels a period away on either side (Liu, Lin and Hays
+/// cut where neighbouring periods agree: on a tiled floor, the joints between the tiles,
+/// whereas the tiles' faces differ in tone).
+fn cell_centre<M: Metric>(sample: &SampleLevel, metric: &M, lattice: &Lattice, margin: usize) -> [i64; 2] {
+    let (x_ends, y_ends) = (sample.band_ends(sample.width, margin), sample.band_ends(sample.height, margin));
+    let inside = |p: [i64; 2]| (x_ends.0..=x_ends.1).contains(&p[0]) && (y_ends.0..=y_ends.1).contains(&p[1]);
+    let unlike: Vec<f32> =
+        super::lattice::structure(sample.width, sample.height, metric).iter().map(|s| -s).collect();
+    let [a, b] = lattice.periods;
+    let edge_steps = (a[0].hypot(a[1]) + b[0].hypot(b[1])).ceil() as usize * 2;
+    let edge: Vec<[f32; 2]> = (0..edge_steps)
+        .flat_map(|k| {
+            let s = k as f32 / edge_steps as f32 - 0.5;
+            [[0.5, s], [-0.5, s], [s, 0.5], [s, -0.5]]
+        })
+        .map(|[u, v]| [u * a[0] + v * b[0], u * a[1] + v * b[1]])
+        .collect();
+    let cost = |c: [i64; 2]| -> f32 {
+        let (mut sum, mut n) = (0.0, 0);
+        for e in &edge {
+            let q = [c[0] + e[0].round() as i64, c[1] + e[1].round() as i64];
+            let u = if inside(q) { unlike[q[1] as usize * sample.width + q[0] as usize] } else { f32::NAN };
+            if u.is_nan() {
+                // Only cells wholly inside the band are judged, all on as many texels.
+                return f32::INFINITY;
+            }
+            sum += u;
+            n += 1;
+        }
+        sum / n.max(1) as f32
+    };
+    let mut best = ([x_ends.0, y_ends.0], f32::INFINITY);
+    for y in y_ends.0..=y_ends.1 {
+        for x in x_ends.0..=x_ends.1 {
+            let c = cost([x, y]);
+            if c < best.1 {
+                best = ([x, y], c);
+            }
+        }
+    }
+    best.0
 }
 
 /// A wrap whose [`wrap_unlikeness`] is above this joins texels far less alike than any two
@@ -264,7 +428,7 @@ fn seam_pairs(
     graph: &Steps,
     members: &[u32],
     owner: &[u32],
-    placed: &[bool],
+    places: &[Option<[i64; 2]>],
     uv: &[[i32; 2]],
     sample: &SampleLevel,
     margin: usize,
@@ -272,7 +436,7 @@ fn seam_pairs(
     let mut seam = Vec::new();
     for &v in members {
         for (u, o, _) in graph.neighbours(v as usize) {
-            if placed[owner[u] as usize] {
+            if places[owner[u] as usize].is_some() {
                 let [x, y] = uv[u];
                 let predicted = sample.wrap_into_candidates(
                     (x as f32 - o[0]).round() as i64,
@@ -611,7 +775,7 @@ mod tests {
                 &sample,
                 &metric,
                 (margin, 4.0, 4),
-                [false; 2],
+                Layout::default(),
                 &mut ChaCha8Rng::seed_from_u64(7),
             );
             let xs = state.uv.iter().flat_map(|&[x, y]| [x, y]);
@@ -622,14 +786,79 @@ mod tests {
         assert_eq!(used(2), (2, last - 2));
     }
 
+    /// A tileable sample of 8×8 tiles: joints (texton 0) on every eighth row and column, each
+    /// tile's face one of textons 1–3.
+    fn tiled_sample() -> SampleLevel {
+        let mut sample = periodic_sample(4);
+        for p in 0..sample.width * sample.height {
+            let (x, y) = (p % sample.width, p / sample.width);
+            let face = 1 + (x / 8 + 2 * (y / 8)) % 3;
+            sample.labels[p] = if x % 8 == 0 || y % 8 == 0 { 0 } else { face as u16 };
+        }
+        sample
+    }
+
+    /// On a plane and a lattice sample every patch is one cell, copied whole periods from the
+    /// cell centre, so every output texel is in phase with the sample and the joints run on:
+    /// without the lattice, patches land at any phase.
+    #[test]
+    fn plane_patches_on_a_lattice_sample_are_whole_cells_in_phase() {
+        let sample = tiled_sample();
+        let plane = &grid_levels(40, 40, 1, 5, 3)[0];
+        let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
+        let run = |lattice: Option<Lattice>, seed: u64| {
+            let layout = Layout { own_edges: [false; 2], lattice };
+            patch_state(plane, &sample, &metric, (2, 4.0, 4), layout, &mut ChaCha8Rng::seed_from_u64(seed))
+        };
+        let phases = |state: &State| {
+            let mut phases: Vec<[i32; 2]> = (0..plane.vertices)
+                .map(|v| {
+                    let (x, y) = ((v % 40) as i32, (v / 40) as i32);
+                    [(state.uv[v][0] - x).rem_euclid(8), (state.uv[v][1] - y).rem_euclid(8)]
+                })
+                .collect();
+            phases.sort_unstable();
+            phases.dedup();
+            phases
+        };
+        // Texels from the nearest joint (every eighth row or column of the sample).
+        let from_joint = |t: i32| t.rem_euclid(8).min(8 - t.rem_euclid(8));
+        let lattice = Lattice { periods: [[8.0, 0.0], [0.0, 8.0]] };
+        for seed in 0..4 {
+            let (state, owner) = run(Some(lattice), seed);
+            assert_eq!(phases(&state).len(), 1, "seed {seed}: {:?}", phases(&state));
+            let patches = owner.iter().max().map_or(0, |&o| o as usize + 1);
+            // Cells of 8×8 over 40×40 texels: 25, one more row and column where the random
+            // phase cuts the grid's edges.
+            assert!((25..=36).contains(&patches), "seed {seed}: {patches} patches");
+            // Where two cells meet, the texels are on a joint or beside it: the cells' edges run
+            // along the joints, so every tile is one patch's.
+            for v in 0..plane.vertices {
+                for (u, axis) in [(v + 1, 0), (v + 40, 1)] {
+                    let inside = if axis == 0 { v % 40 < 39 } else { u < plane.vertices };
+                    if inside && owner[u] != owner[v] {
+                        assert!(from_joint(state.uv[v][axis]) <= 1, "seed {seed}: vertex {v} axis {axis}");
+                    }
+                }
+            }
+        }
+        assert!((0..4).any(|seed| phases(&run(None, seed).0).len() > 1));
+    }
+
     #[test]
     fn patches_copy_whole_pieces_with_their_offsets() {
         let mut sample = periodic_sample(4);
         sample.tileable = false;
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let (state, owner) =
-            patch_state(level, &sample, &metric, (2, 4.0, 4), [false; 2], &mut ChaCha8Rng::seed_from_u64(7));
+        let (state, owner) = patch_state(
+            level,
+            &sample,
+            &metric,
+            (2, 4.0, 4),
+            Layout::default(),
+            &mut ChaCha8Rng::seed_from_u64(7),
+        );
         // Right neighbours continue their patch (uv + (1, 0)) except across a seam; the seams
         // are a minority at this patch size.
         let coherent = (0..40 * 40)
@@ -689,8 +918,14 @@ mod tests {
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let wrapped_steps = |edges: [bool; 2]| {
-            let (state, owner) =
-                patch_state(level, &sample, &metric, (1, 4.0, 4), edges, &mut ChaCha8Rng::seed_from_u64(7));
+            let (state, owner) = patch_state(
+                level,
+                &sample,
+                &metric,
+                (1, 4.0, 4),
+                Layout { own_edges: edges, lattice: None },
+                &mut ChaCha8Rng::seed_from_u64(7),
+            );
             (0..40 * 40)
                 .filter(|&v| v % 40 < 39 && owner[v] == owner[v + 1])
                 .filter(|&v| state.uv[v + 1][0] < state.uv[v][0])
@@ -716,8 +951,14 @@ mod tests {
             assert_eq!(cost, expected, "vertex {v}, {from_edge} from the edge");
         }
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let (_, owner) =
-            patch_state(level, &sample, &metric, (2, 6.0, 4), [false; 2], &mut ChaCha8Rng::seed_from_u64(3));
+        let (_, owner) = patch_state(
+            level,
+            &sample,
+            &metric,
+            (2, 6.0, 4),
+            Layout::default(),
+            &mut ChaCha8Rng::seed_from_u64(3),
+        );
         let inside = move_costs(level, &owner, keep).iter().filter(|&&c| c > 1.0).count();
         assert!((1..900 / 2).contains(&inside), "{inside} of 900 deep inside patches of radius 6");
     }
