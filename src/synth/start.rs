@@ -57,7 +57,9 @@ pub fn random_texel(sample: &SampleLevel, margin: usize, rng: &mut ChaCha8Rng) -
 /// texels, against 2.6% wrapped).
 ///
 /// Along an axis where the sample has edges of its own ([`own_edges`]) a patch is moved,
-/// where it fits, so that its copy does not wrap.
+/// where it fits, so that its copy does not wrap. On a lattice sample ([`Layout::lattice`])
+/// a plane's patches are the lattice's cells ([`cell_seeds`]) and every patch is placed in
+/// phase ([`in_phase`]).
 pub(crate) fn patch_state<M: Metric>(
     level: &TargetLevel,
     sample: &SampleLevel,
@@ -138,7 +140,8 @@ pub(crate) struct Layout {
 
 /// Continuations to move by whole periods ([`in_phase`]), spread along the seam.
 const PHASE_SOURCES: usize = 8;
-/// The most periods a place is moved by along either.
+/// The most periods a place is moved by along either: at most 17² places per continuation
+/// are costed, and on the start level a sample holds far fewer periods than 8 a side.
 const MOST_PERIODS: i64 = 8;
 
 /// On a lattice sample, the places in phase with the placed neighbours: each continuation
