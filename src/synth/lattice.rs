@@ -63,7 +63,7 @@ const PROMINENCE: f32 = 0.2;
 const INDEPENDENT: f32 = 0.5;
 
 /// The sample's lattice, if it has one, looked for on the finest of `levels` at most
-/// [`SEARCH_SIDE`] a side (none if the analysis has no level that small, or `metric_of` no
+/// 80 texels a side (none if the analysis has no level that small, or `metric_of` no
 /// metric there), in its structure: how unlike each texel is to its right and lower
 /// neighbours under `metric`. Structure rather than the texels themselves, since a tiled
 /// floor's tiles differ in tone but not in where their joints are.
