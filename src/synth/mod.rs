@@ -478,12 +478,12 @@ fn patches<'a>(
     let margin = sizes.0;
     let finest = &levels[0];
     let coarser = finest.width as f32 / sample.width as f32;
-    // Lattice cells are laid on planes only: on a mesh a lattice's phase cannot be kept
-    // around the surface, and whether in-phase copies serve a model is not yet measured.
-    let on_plane = matches!(target.neighbourhoods, target::Neighbourhoods::Grid { .. });
+    // On a mesh a lattice cannot be laid all around the surface, so its patches are not the
+    // lattice's cells; each is still placed in phase with a placed neighbour's continuation,
+    // and inside the sample, so that joints meet across its seams (docs/surfaces.md).
     let layout = |own_edges, lattice: &dyn Fn() -> Option<lattice::Lattice>| start::Layout {
         own_edges,
-        lattice: if on_plane { lattice().map(|l| l.scaled(coarser)) } else { None },
+        lattice: lattice().map(|l| l.scaled(coarser)),
     };
     Ok(match kind {
         MetricKind::Gamma => {

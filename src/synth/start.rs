@@ -848,6 +848,42 @@ mod tests {
         assert!((0..4).any(|seed| phases(&run(None, seed).0).len() > 1));
     }
 
+    /// On a mesh the patches are not the lattice's cells, but each is placed in phase with
+    /// its placed neighbours: on a flat mesh every vertex ends in one phase, so joints run on
+    /// across every seam. Without the lattice the phases vary.
+    #[test]
+    fn mesh_patches_on_a_lattice_sample_are_placed_in_phase() {
+        let sample = tiled_sample();
+        let (mesh, frames) = crate::synth::surface::tests::flat_grid(40, 40, 1.0);
+        let level = crate::synth::surface::surface_level(&mesh, &frames, 1.0, 5).expect("valid");
+        let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
+        let phases = |lattice: Option<Lattice>, seed: u64| {
+            let layout = Layout { own_edges: [false; 2], lattice };
+            let (state, _) = patch_state(
+                &level,
+                &sample,
+                &metric,
+                (2, 6.0, 4),
+                layout,
+                &mut ChaCha8Rng::seed_from_u64(seed),
+            );
+            let mut phases: Vec<[i32; 2]> = (0..level.vertices)
+                .map(|v| {
+                    let (x, y) = ((v % 40) as i32, (v / 40) as i32);
+                    [(state.uv[v][0] - x).rem_euclid(8), (state.uv[v][1] - y).rem_euclid(8)]
+                })
+                .collect();
+            phases.sort_unstable();
+            phases.dedup();
+            phases.len()
+        };
+        let lattice = Lattice { periods: [[8.0, 0.0], [0.0, 8.0]] };
+        for seed in 0..4 {
+            assert_eq!(phases(Some(lattice), seed), 1, "seed {seed}");
+        }
+        assert!((0..4).any(|seed| phases(None, seed) > 1));
+    }
+
     #[test]
     fn patches_copy_whole_pieces_with_their_offsets() {
         let mut sample = periodic_sample(4);
