@@ -106,6 +106,9 @@ pub(crate) fn patch_state<M: Metric>(
             // the same element twice side by side is the lattice of copies at its plainest.
             let neighbours = members[patch].iter().flat_map(|&v| graph.neighbours(v as usize));
             apart_from.extend(neighbours.filter_map(|(u, ..)| places[owner[u] as usize]));
+            // One entry per neighbour, not per step to it: a mesh's patches are large.
+            apart_from.sort_unstable();
+            apart_from.dedup();
         }
         if layout.own_edges.contains(&true) {
             let inside = footprint.inside(sample, margin, layout.own_edges);
