@@ -392,7 +392,8 @@ pub(crate) fn move_costs(level: &TargetLevel, owner: &[u32], keep: KeepInteriors
 /// `v`'s steps on `level` (neighbour, length), the ones [`Steps`] keeps, into `out`.
 fn steps_from(level: &TargetLevel, v: usize, scratch: &mut Vec<Shift>, out: &mut Vec<(usize, f32)>) {
     out.clear();
-    let lengths = level.shifts_of(v, scratch).iter().filter_map(|&(u, o)| Some((u as usize, step_length(v, u, o)?)));
+    let lengths =
+        level.shifts_of(v, scratch).iter().filter_map(|&(u, o)| Some((u as usize, step_length(v, u, o)?)));
     out.extend(lengths);
 }
 
