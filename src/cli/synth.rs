@@ -88,7 +88,9 @@ pub struct SynthArgs {
     k: Option<usize>,
     /// Pyramid levels to use (at most the analysis' levels). Default on a plane: as many as
     /// keep the coarsest level at least 4n + 2 texels a side for an n×n --neighborhood, 30
-    /// for 7×7, so that a small sample is not copied whole on a lattice. Default on a mesh:
+    /// for 7×7, so that a small sample is not copied whole on a lattice, or two where that
+    /// leaves one and the second is at least 3n + 1 (22), so that elements larger than the
+    /// neighbourhood are not cut into fragments. Default on a mesh:
     /// one for presets that start from patches (all but turk2001, chen2008 and
     /// castellanos), whose passes then only mend the patches' seams; more levels smear a
     /// mesh's texture (docs/surfaces.md).

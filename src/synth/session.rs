@@ -177,16 +177,38 @@ impl SynthSessionBuilder {
 /// whose band holds fewer, every patch is most of the band, so the output is a lattice of
 /// near-whole copies of the sample at the band's period (a 64² sample's third level is 16²:
 /// a band of 10 texels against patches of 8). Halving stops early instead: a 64² sample
-/// starts at 32², a 50² one on itself.
+/// starts at 32², a 50² one at 25² ([`second_level_side_for`]).
 pub fn coarsest_side_for(n: usize) -> usize {
     4 * n + 2
 }
 
+/// The least side of a second level that a sample too small for [`coarsest_side_for`]
+/// still starts on: a band that holds two of the smallest patches a side, 3n + 1 texels (22
+/// for the default 7×7).
+///
+/// Why: on one level nothing larger than the template is matched, and elements larger
+/// than it come out cut into fragments: a 50² chocolate swirl's 25-texel swirls became a
+/// mush of pieces (patch energy 0.0021–0.0022, Embark's 0.0012), a 64×56 pine board's
+/// knots faint. Its 25² second level keeps them whole (patch energy 0.0014–0.0017) at
+/// repetition 0.016–0.022, still at or below Resynthesizer's 0.022 and Embark's 0.033
+/// (seeds 0–3, 4× the side; leaves at 50²: 0.027–0.043 against both peers' 0.047). A
+/// third level at this size was measured and is not taken: on a 96² wood and a 100² stone
+/// (two levels already) it raised repetition above Resynthesizer's (0.031–0.049 against
+/// 0.029, 0.018–0.026 against 0.024).
+pub fn second_level_side_for(n: usize) -> usize {
+    3 * n + 1
+}
+
 /// The levels a synthesis uses by default: the most (up to the analysis') whose coarsest
-/// level is at least [`coarsest_side_for`] the neighbourhood `n` a side; at least one.
+/// level is at least [`coarsest_side_for`] the neighbourhood `n` a side, or two where only
+/// one is and the second is at least [`second_level_side_for`] `n`; at least one.
 pub fn default_levels(manifest: &Manifest, n: usize) -> usize {
     let side = |l: usize| manifest.levels[l - 1].width.min(manifest.levels[l - 1].height);
-    (1..=manifest.levels.len()).rev().find(|&l| side(l) >= coarsest_side_for(n)).unwrap_or(1)
+    let available = manifest.levels.len();
+    match (1..=available).rev().find(|&l| side(l) >= coarsest_side_for(n)).unwrap_or(1) {
+        1 if available >= 2 && side(2) >= second_level_side_for(n) => 2,
+        levels => levels,
+    }
 }
 
 /// The levels a synthesis on a surface uses by default: one for a recipe whose coarsest level
@@ -329,6 +351,30 @@ mod tests {
         assert_eq!((session.levels(), session.params().search), (1, Search::KCoherence { k: 5 }));
         assert_eq!(SynthSessionBuilder::new().levels(2).build(&m).unwrap().levels(), 2);
         assert_eq!(session.provenance()["search"], "kcoherence");
+    }
+
+    /// A plane's default keeps its coarsest level at least 4n + 2 texels a side (30 for
+    /// 7×7), and takes a second level of at least 3n + 1 (22) rather than run on one.
+    #[test]
+    fn a_plane_s_coarsest_level_holds_three_patches_or_two_on_a_second_level() {
+        let mut m = manifest();
+        m.levels.push(m.levels[1].clone());
+        for (sides, levels) in [
+            ([256, 128, 64], 3),
+            ([128, 64, 32], 3),
+            ([96, 48, 24], 2),
+            ([64, 32, 16], 2),
+            ([50, 25, 12], 2),
+            ([44, 22, 11], 2),
+            ([42, 21, 10], 1),
+        ] {
+            for (level, side) in m.levels.iter_mut().zip(sides) {
+                (level.width, level.height) = (side, side);
+            }
+            assert_eq!(default_levels(&m, 7), levels, "{sides:?}");
+        }
+        m.levels.truncate(1);
+        assert_eq!(default_levels(&m, 7), 1, "one level analysed");
     }
 
     /// On a surface a recipe that starts from patches runs one level by default, one that
