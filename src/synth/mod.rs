@@ -138,7 +138,9 @@ pub fn synthesize(
             ),
         ));
     }
-    let preset = &params.preset;
+    let on_mesh = matches!(targets[0].neighbourhoods, target::Neighbourhoods::Mesh { .. });
+    let surface_preset = on_mesh.then(|| params.preset.on_surface());
+    let preset = surface_preset.as_ref().unwrap_or(&params.preset);
     preset.validate()?;
     preset.check_search(params.search)?;
     preset.check_sample(&sample.levels[..targets.len()])?;
@@ -201,7 +203,6 @@ pub fn synthesize(
                     start::random_state(target, level_sample, margin, &mut rng)
                 }
                 (Start::Patches { radius, surface_radius }, _) => {
-                    let on_mesh = matches!(target.neighbourhoods, target::Neighbourhoods::Mesh { .. });
                     let radius = if on_mesh { surface_radius.unwrap_or(radius) } else { radius };
                     // A patch narrower than the template is all seam: the templates that judge
                     // its placement mostly see its neighbours (and a small periodic sample's

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 /// Per preset: FNV-1a 64 of the plane result (labels then coordinates) and of the surface
 /// map's vertex labels and coordinates, for the fixed inputs of [`golden_inputs`].
 const GOLDEN: &[(&str, u64, u64)] = &[
-    ("appearance", 0x00e967524859da52, 0x9d4f31ce6bf7da4b),
-    ("tong2002", 0xc627eda0c3c641d2, 0xca04d5add18fae4e),
+    ("appearance", 0x00e967524859da52, 0x4c5e4d613c0a7d62),
+    ("tong2002", 0xc627eda0c3c641d2, 0xf310fbd3df61ca9f),
     ("turk2001", 0xbba6265602ef9349, 0x4c333c16c5ed4449),
     ("chen2008", 0x36163ad6f8f91e6e, 0xd36a4d88365235ee),
     ("castellanos", 0x35ff99ca13fe62ad, 0x71a2fb9a27118daa),
