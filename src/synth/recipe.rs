@@ -292,7 +292,7 @@ pub struct Preset {
     ///
     /// Why: a mesh's passes mend its patches' seams less well than a plane's (its templates
     /// jitter by up to half a texel), and past the first two they barely move its figures
-    /// while costing as much as all the rest of a 250k-vertex synthesis' stage: on
+    /// while costing half of a 250k-vertex surface's synthesis stage (about 3 s): on
     /// `bunny-1k8` and `cow` at 256 texels across, eleven photograph-and-mesh cases, the
     /// exported texture with 2 passes against 4 had smears 0–0.006 lower on every case,
     /// contrast the same or higher, detail 0.01–0.15 higher (choc swirl 2.44 → 2.59, its
