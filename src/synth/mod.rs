@@ -232,10 +232,12 @@ pub fn synthesize(
             if let (Some(coarse_owner), true) = (&owner, recipe.start.inherits()) {
                 owner = Some(start::inherit_owner(target, coarse_owner));
             }
+            tracing::debug!("level {l}: start in {:.2?}", started.elapsed());
             let move_costs = preset
                 .keep_interiors
                 .zip(owner.as_deref())
                 .map(|(keep, owner)| start::move_costs(target, owner, keep));
+            tracing::debug!("level {l}: start and move costs in {:.2?}", started.elapsed());
             let mut stats = PassStats::default();
             let rounds = round_inputs(recipe, preset.round_stencil(), target, level_sample)?;
             let isotropic_level =
@@ -288,6 +290,7 @@ pub fn synthesize(
                     Some(stats) => stats,
                     None => run_pass(p, &level, &mut current, params, &schedule, &mut rng)?,
                 };
+                tracing::debug!("level {l}: a pass done at {:.2?}", started.elapsed());
                 progress.advance(1);
             }
             let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
