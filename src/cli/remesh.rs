@@ -27,7 +27,9 @@ pub struct RemeshArgs {
     /// Give this or --vertices.
     #[arg(long, value_name = "LENGTH", value_parser = super::positive_number)]
     edge: Option<f32>,
-    /// Split / collapse / flip / relax rounds, 1 to 1000.
+    /// Split / collapse / flip / relax rounds, 1 to 1000. A target with at least four
+    /// times the input's vertices is remeshed at twice the edge first, then refined (each
+    /// face split in four, three more rounds): much faster, and as even.
     #[arg(long, default_value_t = 10, value_parser = super::in_range(1, 1000))]
     iterations: usize,
     /// Replace the output if it exists.

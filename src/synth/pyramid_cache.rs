@@ -17,7 +17,7 @@ use crate::mesh::Mesh;
 use crate::Result;
 
 // Version 2: remeshed vertices come in spatial order (`mesh::layout`).
-const REMESH: Kind = Kind { magic: b"BTFREMSH", version: 2, name: "remesh" };
+const REMESH: Kind = Kind { magic: b"BTFREMSH", version: 3, name: "remesh" };
 // Version 2: parent templates are narrowed from the coarser level's own patches.
 const TEMPLATES: Kind = Kind { magic: b"BTFTMPLT", version: 2, name: "templates" };
 
