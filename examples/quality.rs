@@ -307,7 +307,7 @@ fn peer_row(
         let map = image::open(&coords_out).map_err(|e| e.to_string())?.to_rgb8();
         let uv: Vec<[i32; 2]> = map.pixels().map(|p| [p[0] as i32, p[1] as i32]).collect();
         let level = &grid_levels(map.width() as usize, map.height() as usize, 1, 7, 3)[0];
-        let state = State { labels: vec![0; uv.len()], uv };
+        let state = State::new(vec![0; uv.len()], uv);
         Some(coord_quality(level, &state, (sample.width, sample.height), tileable))
     } else {
         None

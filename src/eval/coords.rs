@@ -137,7 +137,7 @@ mod tests {
 
     fn grid_state(w: usize, h: usize, f: impl Fn(usize, usize) -> [i32; 2]) -> State {
         let uv: Vec<[i32; 2]> = (0..w * h).map(|v| f(v % w, v / w)).collect();
-        State { labels: vec![0; uv.len()], uv }
+        State::new(vec![0; uv.len()], uv)
     }
 
     #[test]

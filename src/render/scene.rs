@@ -59,7 +59,7 @@ impl Scene {
     /// The scene of a synthesized surface map: its mesh, frames, sample coordinates, texton
     /// labels and texel size (not texture-mapped).
     pub fn from_surface_map(map: SurfaceMap) -> Scene {
-        let uv = map.state.uv.iter().map(|&[u, v]| Vec2::new(u as f32, v as f32)).collect();
+        let uv = (0..map.state.uv.len()).map(|v| Vec2::from(map.state.coordinate(v))).collect();
         Scene {
             mesh: map.mesh,
             frames: map.frames,

@@ -282,7 +282,7 @@ pub(crate) mod tests {
     #[test]
     fn the_use_penalty_doubles_per_choice_beyond_the_least_used_candidate() {
         let sample = periodic_sample(4);
-        let state = State { labels: vec![0; 3], uv: vec![[0, 0]; 3] };
+        let state = State::new(vec![0; 3], vec![[0, 0]; 3]);
         let mut usage = Usage::new(&sample, &state, 1, Select::UsePenalty { base: 2.0 });
         assert_eq!(usage.factor(5, [5, 0], usage.floor(&[5, 6])), 1.0, "nothing chosen yet");
         usage.moved([0, 0], [5, 0]);
@@ -301,7 +301,7 @@ pub(crate) mod tests {
     #[test]
     fn the_level_floor_counts_every_candidate() {
         let sample = periodic_sample(4);
-        let state = State { labels: vec![0; 3], uv: vec![[0, 0]; 3] };
+        let state = State::new(vec![0; 3], vec![[0, 0]; 3]);
         let select = Select::UsePenalty { base: 2.0 };
         let mut usage = Usage::new(&sample, &state, 1, select).over_level(Search::KdTrees, &sample, 1);
         usage.moved([0, 0], [5, 0]);

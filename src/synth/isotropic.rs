@@ -132,7 +132,7 @@ pub fn inherit(
         })
         .collect();
     let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
-    (State { labels, uv }, turns)
+    (State::new(labels, uv), turns)
 }
 
 /// The isotropic neighbourhoods of every texel of one sample level, unturned: `POINTS ×
@@ -659,7 +659,7 @@ mod tests {
             let uv = (0..side * side)
                 .map(|_| super::super::start::random_texel(&sample, REACH, &mut rng))
                 .collect();
-            let state = State { labels: vec![0; side * side], uv };
+            let state = State::new(vec![0; side * side], uv);
             let trees = Mutex::new(UseTrees::new(eigen));
             let (mut scan, mut tree) = (
                 IsoMatch::new(&level, &sample, &map),
@@ -722,10 +722,8 @@ mod tests {
             sample: IsoSample::new(&map, w, h),
             turns: &turns,
         };
-        let state = State {
-            labels: vec![0; w * h],
-            uv: (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect(),
-        };
+        let state =
+            State::new(vec![0; w * h], (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect());
         let mut m = IsoMatch::new(&level, &sample, &map);
         let v = 12 * w + 11;
         m.prepare(v, &state, None);

@@ -287,10 +287,7 @@ mod tests {
         let map = AppearanceMap::new(w, h, 3, &colours, false);
         let metric = AppearanceMetric { map: &map, template: 7 };
         let level = &grid_levels(w, h, 1, 7, 3)[0];
-        let copy = State {
-            labels: vec![0; w * h],
-            uv: (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect(),
-        };
+        let copy = State::new(vec![0; w * h], (0..w * h).map(|p| [(p % w) as i32, (p / w) as i32]).collect());
         let (v, centre) = (8 * w + 8, (8i64, 8i64));
         let distance = |state: &State| {
             let (mut slots, mut query) = (Vec::new(), Vectors::default());

@@ -157,6 +157,9 @@ pub fn synthesize(
     // Each vertex's patch, where the coarsest level started from patches whose interiors the
     // recipe keeps.
     let mut owner: Option<Vec<u32>> = None;
+    // Where the finest level of a surface started from patches: each vertex's copied texel
+    // and its place within it, kept for the vertices the passes leave there.
+    let mut patch_places: Option<StartPlaces> = None;
     // The coarser level's turns, where isotropic passes matched it.
     let mut coarse_turns: Option<isotropic::Turns> = None;
     // The greedy colouring of a level runs on one core (on the finest level of a 250k
@@ -215,15 +218,18 @@ pub fn synthesize(
                     );
                     let k = search.list_length(level_sample);
                     let metric = recipe.passes.first().map_or(MetricKind::Gamma, |p| p.metric());
-                    let (state, patch_owner) = patches(
+                    let start = patches(
                         metric,
                         target,
                         (level_sample, &sample.levels),
                         (margin, patch, k),
                         &mut rng,
                     )?;
-                    owner = preset.keep_interiors.map(|_| patch_owner);
-                    state
+                    owner = preset.keep_interiors.map(|_| start.owner);
+                    if l == 0 && on_mesh {
+                        patch_places = Some((start.state.uv.clone(), start.subtexel));
+                    }
+                    start.state
                 }
                 (Start::Inherit | Start::Jittered { .. }, None) => {
                     unreachable!("checked above: the coarsest level does not inherit")
@@ -302,8 +308,27 @@ pub fn synthesize(
             coarse_turns = turns;
         }
         progress.finish();
-        Ok((state.expect("at least one level"), reports))
+        let mut state = state.expect("at least one level");
+        if let Some((started, subtexel)) = patch_places {
+            state.subtexel = kept_places(&state.uv, &started, subtexel);
+        }
+        Ok((state, reports))
     })
+}
+
+/// Each vertex's texel on the start's patches, and its place within it.
+type StartPlaces = (Vec<[i32; 2]>, Vec<[f32; 2]>);
+
+/// Each vertex's place within its texel from the start (`subtexel`), where it still copies
+/// the texel it `started` on; the centre where a pass moved it (its new texel is a
+/// neighbour's continuation, whole).
+fn kept_places(uv: &[[i32; 2]], started: &[[i32; 2]], mut subtexel: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
+    for ((place, now), then) in subtexel.iter_mut().zip(uv).zip(started) {
+        if now != then {
+            *place = [0.0; 2];
+        }
+    }
+    subtexel
 }
 
 /// What a pass on level `l` reads besides its own state.
@@ -477,7 +502,7 @@ fn patches<'a>(
     (sample, levels): (&'a SampleLevel, &'a [SampleLevel]),
     sizes: (usize, f32, usize),
     rng: &mut ChaCha8Rng,
-) -> Result<(State, Vec<u32>)> {
+) -> Result<start::PatchStart> {
     let template = target.template;
     let margin = sizes.0;
     let finest = &levels[0];
@@ -537,5 +562,20 @@ fn report(
         mean_candidates: stats.mean_candidates,
         mean_best_distance: stats.mean_best,
         device: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::kept_places;
+
+    /// A vertex keeps the start's place within its texel only while it copies the texel it
+    /// started on.
+    #[test]
+    fn a_moved_vertex_loses_its_place_within_the_texel() {
+        let started = [[4, 4], [5, 4], [6, 4]];
+        let now = [[4, 4], [9, 1], [6, 4]];
+        let places = vec![[0.25, -0.1], [0.4, 0.4], [-0.3, 0.2]];
+        assert_eq!(kept_places(&now, &started, places), [[0.25, -0.1], [0.0, 0.0], [-0.3, 0.2]]);
     }
 }

@@ -176,5 +176,5 @@ pub fn read_plane(dir: &Path) -> Result<(usize, usize, State, serde_json::Value)
         ));
     }
     let uv = uv.data.chunks_exact(2).map(|c| [c[0] as i32, c[1] as i32]).collect();
-    Ok((w, h, State { labels: labels.data, uv }, manifest))
+    Ok((w, h, State::new(labels.data, uv), manifest))
 }

@@ -244,7 +244,7 @@ mod tests {
         let level = &grid_levels(32, 32, 1, 5, 3)[0];
         let uv: Vec<[i32; 2]> = (0..32 * 32).map(|v| [v % 32 % 16, v / 32 % 16]).collect();
         let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
-        let mut state = State { labels, uv };
+        let mut state = State::new(labels, uv);
         let before = state.clone();
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let order: Vec<u32> = (0..32 * 32).collect();

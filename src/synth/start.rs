@@ -67,7 +67,7 @@ pub(crate) fn patch_state<M: Metric>(
     (margin, patch_radius, k): (usize, f32, usize),
     layout: Layout,
     rng: &mut ChaCha8Rng,
-) -> (State, Vec<u32>) {
+) -> PatchStart {
     let graph = Steps::of(level);
     let cells = layout.lattice.zip(plane_grid(level));
     let seeds = match cells {
@@ -128,7 +128,27 @@ pub(crate) fn patch_state<M: Metric>(
         }
         places[patch] = Some(best);
     }
-    (with_labels(uv, sample), owner)
+    // Each vertex lies `position` from its seed, its copy `round(position)` from the
+    // place: what the rounding left is where it lies within the texel it copies. Kept off
+    // the texel's very edge, so that the coordinate written as a float rounds back to it.
+    let within = |x: f32| (x - x.round()).clamp(-SUBTEXEL_REACH, SUBTEXEL_REACH);
+    let subtexel = position.iter().map(|p| p.map(within)).collect();
+    PatchStart { state: with_labels(uv, sample), owner, subtexel }
+}
+
+/// How far from its texel's centre a vertex's place may lie, in texels: short of half a
+/// texel by a margin the float sum of texel and place cannot round across.
+const SUBTEXEL_REACH: f32 = 0.49;
+
+/// The start's patches on a level.
+pub(crate) struct PatchStart {
+    /// Every vertex a copy of its patch's place.
+    pub state: State,
+    /// Per vertex, its patch.
+    pub owner: Vec<u32>,
+    /// Per vertex, where it lies within the texel it copies ([`State::subtexel`]): zero on a
+    /// plane, whose offsets are whole texels.
+    pub subtexel: Vec<[f32; 2]>,
 }
 
 /// What the start knows of the sample as a whole, besides its texels.
@@ -622,7 +642,7 @@ pub fn jitter(state: State, sample: &SampleLevel, margin: usize, texels: f32, se
 
 fn with_labels(uv: Vec<[i32; 2]>, sample: &SampleLevel) -> State {
     let labels = uv.iter().map(|&[x, y]| sample.label_at(x as i64, y as i64)).collect();
-    State { labels, uv }
+    State::new(labels, uv)
 }
 
 /// The level's short steps: per vertex the neighbours within [`STEP`] texels, with their
@@ -794,7 +814,7 @@ mod tests {
         assert_eq!(TargetLevel::new(0, mesh).candidate_margin(2), 2);
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let used = |margin: usize| {
-            let (state, _) = patch_state(
+            let PatchStart { state, .. } = patch_state(
                 plane,
                 &sample,
                 &metric,
@@ -849,7 +869,7 @@ mod tests {
         let from_joint = |t: i32| t.rem_euclid(8).min(8 - t.rem_euclid(8));
         let lattice = Lattice { periods: [[8.0, 0.0], [0.0, 8.0]] };
         for seed in 0..4 {
-            let (state, owner) = run(Some(lattice), seed);
+            let PatchStart { state, owner, .. } = run(Some(lattice), seed);
             assert_eq!(phases(&state).len(), 1, "seed {seed}: {:?}", phases(&state));
             let patches = owner.iter().max().map_or(0, |&o| o as usize + 1);
             // Cells of 8×8 over 40×40 texels: 25, one more row and column where the random
@@ -866,7 +886,7 @@ mod tests {
                 }
             }
         }
-        assert!((0..4).any(|seed| phases(&run(None, seed).0).len() > 1));
+        assert!((0..4).any(|seed| phases(&run(None, seed).state).len() > 1));
     }
 
     /// On a mesh the patches are not the lattice's cells, but each is placed in phase with
@@ -880,7 +900,7 @@ mod tests {
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let phases = |lattice: Option<Lattice>, seed: u64| {
             let layout = Layout { own_edges: [false; 2], lattice };
-            let (state, _) = patch_state(
+            let PatchStart { state, .. } = patch_state(
                 &level,
                 &sample,
                 &metric,
@@ -911,7 +931,7 @@ mod tests {
         sample.tileable = false;
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let (state, owner) = patch_state(
+        let PatchStart { state, owner, .. } = patch_state(
             level,
             &sample,
             &metric,
@@ -978,7 +998,7 @@ mod tests {
         let level = &grid_levels(40, 40, 1, 5, 3)[0];
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
         let wrapped_steps = |edges: [bool; 2]| {
-            let (state, owner) = patch_state(
+            let PatchStart { state, owner, .. } = patch_state(
                 level,
                 &sample,
                 &metric,
@@ -1011,7 +1031,7 @@ mod tests {
             assert_eq!(cost, expected, "vertex {v}, {from_edge} from the edge");
         }
         let metric = crate::synth::metric::GammaMetric { sample: &sample, template: 5 };
-        let (_, owner) = patch_state(
+        let PatchStart { owner, .. } = patch_state(
             level,
             &sample,
             &metric,

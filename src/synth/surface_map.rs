@@ -353,7 +353,8 @@ pub const ANALYSIS_ABSOLUTE_KEY: &str = "analysis-absolute";
 pub const ANALYSIS_FINGERPRINT_KEY: &str = "analysis-fingerprint";
 
 /// Writes the finest level with its map as a binary PLY: position, normal, frame direction
-/// s (`sx sy sz`), `texton`, `u`, `v` (sample texels); the header comments record the
+/// s (`sx sy sz`), `texton`, `u`, `v` (sample texels, with the place within the texel where
+/// the synthesis knows it: [`State::subtexel`]); the header comments record the
 /// analysis (relative to the PLY, absolute, and its fingerprint), the mesh, the texel size
 /// and `params` (which must hold no timings: equal inputs give equal bytes).
 pub fn write_surface_ply(
@@ -369,8 +370,7 @@ pub fn write_surface_ply(
     let component = |c: usize| level.frames.s.iter().map(|s| s[c]).collect::<Vec<f32>>();
     let (sx, sy, sz) = (component(0), component(1), component(2));
     let texton: Vec<u32> = state.labels.iter().map(|&l| l as u32).collect();
-    let u: Vec<f32> = state.uv.iter().map(|p| p[0] as f32).collect();
-    let v: Vec<f32> = state.uv.iter().map(|p| p[1] as f32).collect();
+    let (u, v): (Vec<f32>, Vec<f32>) = (0..state.uv.len()).map(|k| state.coordinate(k).into()).unzip();
     let properties = [
         VertexProperty { name: "sx", data: PropertyData::Float(&sx) },
         VertexProperty { name: "sy", data: PropertyData::Float(&sy) },
@@ -615,9 +615,9 @@ pub fn parse_surface_ply(bytes: &[u8], path: &Path) -> Result<SurfaceMap> {
     let labels: Vec<u16> =
         column("texton").into_iter().map(|b| u32::from_le_bytes(b).min(u16::MAX as u32) as u16).collect();
     let (u, v) = (float("u"), float("v"));
-    if let Some(i) = (0..u.len())
-        .find(|&i| !(0.0..MAX_COORDINATE).contains(&u[i]) || !(0.0..MAX_COORDINATE).contains(&v[i]))
-    {
+    // A vertex copying texel 0 may lie up to half a texel before its centre.
+    let valid = -0.5..MAX_COORDINATE;
+    if let Some(i) = (0..u.len()).find(|&i| !valid.contains(&u[i]) || !valid.contains(&v[i])) {
         return Err(bad(&format!("vertex {i} has the sample coordinate ({}, {})", u[i], v[i])));
     }
     let triangles = read_triangles(faces, face.count).ok_or_else(|| bad("faces are not triangles"))?;
@@ -636,8 +636,19 @@ pub fn parse_surface_ply(bytes: &[u8], path: &Path) -> Result<SurfaceMap> {
         .and_then(|t| t.trim().parse::<f32>().ok())
         .filter(|t| t.is_finite() && *t > 0.0)
         .ok_or_else(|| bad("no positive 'texel' comment"))?;
-    let uv = u.iter().zip(&v).map(|(&a, &b)| [a.round() as i32, b.round() as i32]).collect();
-    Ok(SurfaceMap { mesh, frames, state: State { labels, uv }, texel, comments })
+    Ok(SurfaceMap { mesh, frames, state: coordinates_state(labels, &u, &v), texel, comments })
+}
+
+/// The state of coordinates `u`, `v` as written: each rounded to its texel, and where any
+/// lies between texels, every vertex's place within its texel.
+fn coordinates_state(labels: Vec<u16>, u: &[f32], v: &[f32]) -> State {
+    let uv: Vec<[i32; 2]> = u.iter().zip(v).map(|(&a, &b)| [a.round() as i32, b.round() as i32]).collect();
+    let mut state = State::new(labels, uv);
+    let within = |k: usize| [u[k] - state.uv[k][0] as f32, v[k] - state.uv[k][1] as f32];
+    if (0..u.len()).any(|k| within(k) != [0.0; 2]) {
+        state.subtexel = (0..u.len()).map(within).collect();
+    }
+    state
 }
 
 /// `faces` triangles written as `uchar 3, int a, int b, int c`; negative indices are left
@@ -691,5 +702,20 @@ mod tests {
         assert_eq!(escape_path(Path::new("plain/dir.analysis")), "plain/dir.analysis");
         // A map written before paths were escaped named them raw: tried too.
         assert_eq!(comment_paths("50%25 done"), [PathBuf::from("50% done"), PathBuf::from("50%25 done")]);
+    }
+
+    /// Coordinates written between texels come back as the texel and the place within
+    /// it, to the bit; whole ones come back as whole texels with no places.
+    #[test]
+    fn places_within_texels_come_back_as_written() {
+        let (u, v) = ([0.0, 3.49, 7.0, 12.51, -0.49], [2.0, 0.3, 5.0, 9.5, 4.0]);
+        let state = coordinates_state(vec![0; 5], &u, &v);
+        assert_eq!(state.uv, [[0, 2], [3, 0], [7, 5], [13, 10], [0, 4]]);
+        for k in 0..5 {
+            assert_eq!(state.coordinate(k), [u[k], v[k]], "vertex {k}");
+        }
+        let whole = coordinates_state(vec![0; 2], &[1.0, 2.0], &[3.0, 4.0]);
+        assert!(whole.subtexel.is_empty());
+        assert_eq!(whole.coordinate(1), [2.0, 4.0]);
     }
 }

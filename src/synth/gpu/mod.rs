@@ -1103,7 +1103,7 @@ mod tests {
         // Texel 0 used m times by other vertices, the vertex itself elsewhere.
         for m in [0usize, 1, 2, 5, 9, 40, 300, 700] {
             let uv: Vec<[i32; 2]> = (0..vertices).map(|v| if v < m { [0, 0] } else { [5, 5] }).collect();
-            let state = State { labels: vec![0; vertices], uv };
+            let state = State::new(vec![0; vertices], uv);
             let usage = Usage::new(&sample, &state, radius, Select::Choosy { strength });
             assert_eq!(usage.factor(0, [5, 5], 0).to_bits(), table[m].to_bits(), "m = {m}");
             if m > 0 {
