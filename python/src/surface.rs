@@ -97,6 +97,19 @@ impl Surface {
         view(slf.as_any(), uv.as_flattened(), &[uv.len(), 2])
     }
 
+    /// Where each vertex lies within its texel, float32 `[V, 2]`: within half a texel of
+    /// the texel's centre, zero where the synthesis gives whole texels. `uv + subtexel` is
+    /// the coordinate `save_ply`, `render` and `export_gltf` use.
+    #[getter]
+    fn subtexel<'py>(slf: &Bound<'py, Self>) -> Bound<'py, PyArrayDyn<f32>> {
+        let state = &slf.get().state;
+        let places: Vec<f32> =
+            (0..state.uv.len()).flat_map(|v| state.subtexel.get(v).copied().unwrap_or([0.0; 2])).collect();
+        let array = numpy::ndarray::Array2::from_shape_vec((state.uv.len(), 2), places)
+            .expect("two values per vertex");
+        owned(slf.py(), array)
+    }
+
     /// Texton label per vertex, uint16 `[V]` (a read-only view).
     #[getter]
     fn textons<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<u16>>> {

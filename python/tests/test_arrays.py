@@ -66,6 +66,10 @@ def test_a_mesh_from_arrays_renders_and_exports(analysis):
     surface = btfsynth.synthesize_surface(analysis, vertices, faces, vertices=2000, levels=1)
     assert surface.vertices.shape[1] == 3 and surface.faces.max() < len(surface.vertices)
     assert surface.uv.shape == (len(surface.vertices), 2) and surface.frames.shape == surface.vertices.shape
+    # One level from patches: most vertices lie between texels, each within half a texel.
+    places = surface.subtexel
+    assert places.shape == surface.uv.shape and places.dtype == np.float32 and np.abs(places).max() < 0.5
+    assert (places != 0).any(axis=1).mean() > 0.25
     frame = btfsynth.render(surface, size=(48, 64), view=(0, 0), light=(0, 0), spp=1)
     assert frame.shape == (48, 64, 4) and frame.dtype == np.float32
     assert frame[..., 3].max() == 1.0 and frame[24, 32, :3].sum() > 0
