@@ -615,9 +615,10 @@ pub fn parse_surface_ply(bytes: &[u8], path: &Path) -> Result<SurfaceMap> {
     let labels: Vec<u16> =
         column("texton").into_iter().map(|b| u32::from_le_bytes(b).min(u16::MAX as u32) as u16).collect();
     let (u, v) = (float("u"), float("v"));
-    // A vertex copying texel 0 may lie up to half a texel before its centre.
-    let valid = -0.5..MAX_COORDINATE;
-    if let Some(i) = (0..u.len()).find(|&i| !valid.contains(&u[i]) || !valid.contains(&v[i])) {
+    // A vertex copying texel 0 may lie up to half a texel before its centre (not a whole
+    // half: that rounds to texel -1).
+    let valid = |x: f32| x > -0.5 && x < MAX_COORDINATE;
+    if let Some(i) = (0..u.len()).find(|&i| !valid(u[i]) || !valid(v[i])) {
         return Err(bad(&format!("vertex {i} has the sample coordinate ({}, {})", u[i], v[i])));
     }
     let triangles = read_triangles(faces, face.count).ok_or_else(|| bad("faces are not triangles"))?;
@@ -717,5 +718,29 @@ mod tests {
         let whole = coordinates_state(vec![0; 2], &[1.0, 2.0], &[3.0, 4.0]);
         assert!(whole.subtexel.is_empty());
         assert_eq!(whole.coordinate(1), [2.0, 4.0]);
+    }
+
+    /// A map whose vertex lies half a texel or more before texel 0 is refused (it would
+    /// name texel −1); one just short of that is read.
+    #[test]
+    fn a_place_before_the_first_texel_is_refused() {
+        let (mesh, frames) = crate::synth::surface::tests::flat_grid(3, 3, 0.1);
+        let level = MeshLevel { edges: edge_length_stats(&mesh), mesh, frames, texel: 0.1 };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let ply = dir.path().join("map.ply");
+        let written = |first: f32| {
+            let mut state = State::new(vec![0; 9], vec![[1, 1]; 9]);
+            state.uv[0] = [0, 0];
+            state.subtexel = vec![[0.0; 2]; 9];
+            state.subtexel[0] = [first, 0.25];
+            let (analysis, mesh) = (Path::new("an"), Path::new("grid.obj"));
+            write_surface_ply(&ply, &level, &state, (analysis, mesh), &serde_json::json!({}))
+                .expect("writes");
+            read_surface_ply(&ply)
+        };
+        let read = written(-0.49).expect("a place within the texel");
+        assert_eq!((read.state.uv[0], read.state.coordinate(0)), ([0, 0], [-0.49, 0.25]));
+        let refused = written(-0.5).err().expect("refused").to_string();
+        assert!(refused.contains("sample coordinate (-0.5, 0.25)"), "{refused}");
     }
 }
