@@ -225,10 +225,10 @@ pub fn synthesize(
                         (margin, patch, k),
                         &mut rng,
                     )?;
-                    owner = preset.keep_interiors.map(|_| start.owner);
                     if l == 0 && on_mesh {
-                        patch_places = Some((start.state.uv.clone(), start.subtexel));
+                        patch_places = Some((start.state.uv.clone(), start.subtexel()));
                     }
+                    owner = preset.keep_interiors.map(|_| start.owner);
                     start.state
                 }
                 (Start::Inherit | Start::Jittered { .. }, None) => {

@@ -128,12 +128,7 @@ pub(crate) fn patch_state<M: Metric>(
         }
         places[patch] = Some(best);
     }
-    // Each vertex lies `position` from its seed, its copy `round(position)` from the
-    // place: what the rounding left is where it lies within the texel it copies. Kept off
-    // the texel's very edge, so that the coordinate written as a float rounds back to it.
-    let within = |x: f32| (x - x.round()).clamp(-SUBTEXEL_REACH, SUBTEXEL_REACH);
-    let subtexel = position.iter().map(|p| p.map(within)).collect();
-    PatchStart { state: with_labels(uv, sample), owner, subtexel }
+    PatchStart { state: with_labels(uv, sample), owner, position }
 }
 
 /// How far from its texel's centre a vertex's place may lie, in texels: short of half a
@@ -146,9 +141,19 @@ pub(crate) struct PatchStart {
     pub state: State,
     /// Per vertex, its patch.
     pub owner: Vec<u32>,
-    /// Per vertex, where it lies within the texel it copies ([`State::subtexel`]): zero on a
-    /// plane, whose offsets are whole texels.
-    pub subtexel: Vec<[f32; 2]>,
+    /// Per vertex, its offset from its patch's seed in texels, summed along the level.
+    position: Vec<[f32; 2]>,
+}
+
+impl PatchStart {
+    /// Per vertex, where it lies within the texel it copies ([`State::subtexel`]): its copy
+    /// lies `round(position)` from the patch's place, so what the rounding left. Kept off
+    /// the texel's very edge, so that the coordinate written as a float rounds back to it.
+    /// Zero on a plane, whose offsets are whole texels.
+    pub fn subtexel(&self) -> Vec<[f32; 2]> {
+        let within = |x: f32| (x - x.round()).clamp(-SUBTEXEL_REACH, SUBTEXEL_REACH);
+        self.position.iter().map(|p| p.map(within)).collect()
+    }
 }
 
 /// What the start knows of the sample as a whole, besides its texels.

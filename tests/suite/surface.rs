@@ -18,27 +18,19 @@ fn surface_synthesis_is_deterministic_and_described_by_info() {
     }
 }
 
-fn deterministic_and_described(dir: &std::path::Path, a: &std::path::Path, preset: &str) {
+/// `synth` of analysis `a` on the bundled bunny into `out`, with `args`; it must succeed.
+fn synth_on_bunny(a: &std::path::Path, out: &std::path::Path, args: &[&str]) {
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
+    let common = ["-q", "synth", a.to_str().unwrap(), bunny, "-o", out.to_str().unwrap()];
+    let r = btfsynth(&[&common[..], args].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}
+
+fn deterministic_and_described(dir: &std::path::Path, a: &std::path::Path, preset: &str) {
     let run = |name: &str, seed: &str| {
         let out = dir.join(format!("{preset}-{name}"));
-        let r = btfsynth(&[
-            "-q",
-            "synth",
-            a.to_str().unwrap(),
-            bunny,
-            "--vertices",
-            "4000",
-            "--seed",
-            seed,
-            "--orient",
-            "axis:0,1,0",
-            "--preset",
-            preset,
-            "-o",
-            out.to_str().unwrap(),
-        ]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let args = ["--vertices", "4000", "--seed", seed, "--orient", "axis:0,1,0", "--preset", preset];
+        synth_on_bunny(a, &out, &args);
         out
     };
     let (one, two, other) = (run("one.ply", "1"), run("two.ply", "1"), run("other.ply", "2"));
@@ -109,19 +101,8 @@ fn a_surface_s_copies_lie_between_texels_as_the_surface_does() {
     use btfsynth::synth::surface_map::read_surface_ply;
     let dir = tempfile::tempdir().unwrap();
     let a = analysis(dir.path());
-    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/data/bunny-1k8.obj");
     let ply = dir.path().join("bunny.ply");
-    let r = btfsynth(&[
-        "-q",
-        "synth",
-        a.to_str().unwrap(),
-        bunny,
-        "--vertices",
-        "12000",
-        "-o",
-        ply.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    synth_on_bunny(&a, &ply, &["--vertices", "12000"]);
     let map = read_surface_ply(&ply).unwrap();
     let state = map.state.clone();
     assert_eq!(state.subtexel.len(), state.uv.len(), "every vertex has its place");
