@@ -40,6 +40,7 @@ struct Vertex {
     s_u: vec4<f32>,
     // t, then the vertex's sample v
     t_v: vec4<f32>,
+    // n, then the vertex's share in its copy (Scene::belonging)
     n: vec4<f32>,
 };
 
@@ -365,28 +366,41 @@ struct PointUv {
     weights: vec3<f32>,
 };
 
-// Scene::point_uv: the predictions that agree with the heaviest group's lead, interpolated.
-fn point_uv(qa: vec2<f32>, qb: vec2<f32>, qc: vec2<f32>, w: vec3<f32>) -> PointUv {
+// A corner's claim on the point for a group it is (1) or is not (0) in: its weight times its
+// share in its copy, or times the rest (Scene::point_uv).
+fn claim_of(w: f32, share: f32, agrees: f32) -> f32 {
+    return w * select(1.0 - share, share, agrees > 0.0);
+}
+
+// Scene::point_uv: the predictions that agree with the lead of the largest claim, interpolated.
+fn point_uv(qa: vec2<f32>, qb: vec2<f32>, qc: vec2<f32>, w: vec3<f32>, share: vec3<f32>) -> PointUv {
     let ab = agree(qa, qb);
     let ac = agree(qa, qc);
     let bc = agree(qb, qc);
     let group = vec3<f32>(w.x + ab * w.y + ac * w.z, ab * w.x + w.y + bc * w.z, ac * w.x + bc * w.y + w.z);
-    // the largest group weight, then the larger own weight, then the last (Iterator::max_by)
+    let claim = vec3<f32>(
+        claim_of(w.x, share.x, 1.0) + claim_of(w.y, share.y, ab) + claim_of(w.z, share.z, ac),
+        claim_of(w.x, share.x, ab) + claim_of(w.y, share.y, 1.0) + claim_of(w.z, share.z, bc),
+        claim_of(w.x, share.x, ac) + claim_of(w.y, share.y, bc) + claim_of(w.z, share.z, 1.0),
+    );
+    // the largest claim, then the larger own weight, then the last (Iterator::max_by)
     var lead = 0u;
-    if group.y > group.x || (group.y == group.x && w.y >= w.x) {
+    if claim.y > claim.x || (claim.y == claim.x && w.y >= w.x) {
         lead = 1u;
     }
-    if group.z > group[lead] || (group.z == group[lead] && w.z >= w[lead]) {
+    if claim.z > claim[lead] || (claim.z == claim[lead] && w.z >= w[lead]) {
         lead = 2u;
     }
     var q = array<vec2<f32>, 3>(qa, qb, qc);
     let agrees = array<vec3<f32>, 3>(vec3<f32>(1.0, ab, ac), vec3<f32>(ab, 1.0, bc), vec3<f32>(ac, bc, 1.0));
-    let total = max(group[lead], 1.17549435e-38);
+    let total = group[lead];
+    // a group none of whose corners weighs on the point: its corners share it equally
+    let members = agrees[lead].x + agrees[lead].y + agrees[lead].z;
     var uv = q[lead];
     var weights = vec3<f32>(0.0);
     for (var j = 0u; j < 3u; j++) {
         if agrees[lead][j] > 0.0 {
-            weights[j] = w[j] / total;
+            weights[j] = select(1.0 / members, w[j] / total, total > 0.0);
             uv += weights[j] * wrapped_offset(q[lead], q[j]);
         }
     }
@@ -412,7 +426,8 @@ fn fs_surface(in: Varyings) -> @location(0) vec4<f32> {
         return vec4<f32>(in.colour, 1.0);
     }
     // one coordinate per pixel (Scene::point_uv); the corners' blends still interpolate
-    let point = point_uv(predict_uv(a, p), predict_uv(b, p), predict_uv(c, p), in.bary);
+    let share = vec3<f32>(vertices[a].n.w, vertices[b].n.w, vertices[c].n.w);
+    let point = point_uv(predict_uv(a, p), predict_uv(b, p), predict_uv(c, p), in.bary, share);
     let uv = point.uv;
     var colour = vec3<f32>(0.0);
     if u.lighting.x > 0.0 && dot(normal, u.light.xyz) > 0.0 {

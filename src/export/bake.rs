@@ -23,6 +23,7 @@ use crate::maps::{MapKind, MaterialMap};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::textured::TexturedMesh;
 use crate::progress::Progress;
+use crate::render::scene::{wrapped_offset, AGREE_TEXELS};
 use crate::render::{Blend16, Material, Scene};
 use crate::{Error, Result};
 use glam::{Vec2, Vec3, Vec4};
@@ -141,7 +142,8 @@ pub fn bake(target: &Target, source: &Source, coverage: &Coverage, progress: &dy
         for (x, out) in row.chunks_exact_mut(stride).enumerate() {
             let i = y * w + x;
             if coverage.triangle[i] != Coverage::NONE {
-                bake_texel(target, source, (coverage.triangle[i] as usize, coverage.bary[i]), &mut hint, out);
+                let texel = (coverage.triangle[i] as usize, coverage.bary[i]);
+                bake_texel(target, source, texel, (w, h), &mut hint, out);
             }
         }
         progress.advance(1);
@@ -171,21 +173,31 @@ fn bake_texel(
     target: &Target,
     source: &Source,
     (triangle, bary): (usize, Vec3),
+    atlas_size: (usize, usize),
     hint: &mut u32,
     out: &mut [f32],
 ) {
     let corners = target.atlas.triangles[triangle];
-    let position = |k: usize| target.mesh.positions[target.atlas.source_vertex[corners[k] as usize] as usize];
-    let p = position(0) * bary.x + position(1) * bary.y + position(2) * bary.z;
-    let nearest = source.bvh.closest_point_near(p, *hint);
-    *hint = nearest.triangle;
+    let look = |bary: Vec3, hint: &mut u32| surface_point(target, source, corners, bary, hint);
+    let SurfacePoint { uv, chosen, dense, point } = look(bary, hint);
     let scene = source.scene;
-    let dense = scene.mesh.triangles()[nearest.triangle as usize].map(|v| v as usize);
-    let [a, b, c] = dense.map(|v| scene.mesh.positions()[v]);
-    let weights = barycentric(nearest.point, a, b, c);
-    let corner_ids = dense.map(|v| v as u32);
-    let (uv, chosen) = scene.point_uv(source.material, corner_ids, weights, nearest.point);
-    let colour = source.material.shade(&source.blend, uv.x, uv.y);
+    let mut colour = source.material.shade(&source.blend, uv.x, uv.y);
+    if scene.cuts_copies(source.material, dense.map(|v| v as u32), point) {
+        // A seam may cross the texel: its cut on the atlas' grid would be a staircase of
+        // texels, which a close view magnifies into teeth. Each side's share of the texel
+        // makes it an edge; a place on the centre's side counts as the centre, so that a
+        // texel wholly on one side is not blurred.
+        if let Some(steps) = texel_steps(target, corners, atlas_size) {
+            let centre = colour;
+            let mut sum = Vec3::ZERO;
+            for [dx, dy] in SEAM_SAMPLES {
+                let there = look(bary + dx * steps[0] + dy * steps[1], hint).uv;
+                let same_copy = wrapped_offset(source.material, uv, there).length() <= AGREE_TEXELS;
+                sum += if same_copy { centre } else { source.material.shade(&source.blend, there.x, there.y) };
+            }
+            colour = sum / SEAM_SAMPLES.len() as f32;
+        }
+    }
     out[..3].copy_from_slice(&colour.to_array());
     out[3..5].copy_from_slice(&inside(source.material, uv).to_array());
     for (map, out) in source.maps.iter().zip(out[5..].chunks_exact_mut(3)) {
@@ -207,6 +219,60 @@ fn bake_texel(
         };
         out.copy_from_slice(&value.to_array());
     }
+}
+
+/// Where in a texel a seam's texels are looked up (a rotated grid, in texels from its centre).
+const SEAM_SAMPLES: [[f32; 2]; 4] = [[-0.125, -0.375], [0.375, -0.125], [0.125, 0.375], [-0.375, 0.125]];
+
+/// What the synthesized surface shows at a point of the user's mesh.
+struct SurfacePoint {
+    /// The sample coordinate.
+    uv: Vec2,
+    /// The weight of each corner of the dense triangle in it ([`Scene::point_uv`]).
+    chosen: [f32; 3],
+    /// The dense triangle's corners.
+    dense: [usize; 3],
+    /// The nearest point on the dense surface.
+    point: Vec3,
+}
+
+/// What the synthesized surface shows at point `bary` of atlas triangle `corners` (`hint`:
+/// the dense triangle nearest the last point looked up).
+fn surface_point(
+    target: &Target,
+    source: &Source,
+    corners: [u32; 3],
+    bary: Vec3,
+    hint: &mut u32,
+) -> SurfacePoint {
+    let position = |k: usize| target.mesh.positions[target.atlas.source_vertex[corners[k] as usize] as usize];
+    let p = position(0) * bary.x + position(1) * bary.y + position(2) * bary.z;
+    let nearest = source.bvh.closest_point_near(p, *hint);
+    *hint = nearest.triangle;
+    let scene = source.scene;
+    let dense = scene.mesh.triangles()[nearest.triangle as usize].map(|v| v as usize);
+    let [a, b, c] = dense.map(|v| scene.mesh.positions()[v]);
+    let weights = barycentric(nearest.point, a, b, c);
+    let (uv, chosen) = scene.point_uv(source.material, dense.map(|v| v as u32), weights, nearest.point);
+    SurfacePoint { uv, chosen, dense, point: nearest.point }
+}
+
+/// The change in barycentric weights on atlas triangle `corners` for one texel along the
+/// atlas' columns and one along its rows (none for a triangle of no area in the atlas).
+fn texel_steps(target: &Target, corners: [u32; 3], (width, height): (usize, usize)) -> Option<[Vec3; 2]> {
+    let size = Vec2::new(width as f32, height as f32);
+    let [u0, u1, u2] = corners.map(|c| target.atlas.uv[c as usize] * size);
+    let (e1, e2) = (u1 - u0, u2 - u0);
+    let det = e1.x * e2.y - e2.x * e1.y;
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    // (b1, b2) = M⁻¹ (x − u0) with M = [e1 e2]; b0 = 1 − b1 − b2.
+    let step = |d: Vec2| {
+        let (b1, b2) = ((d.x * e2.y - e2.x * d.y) / det, (e1.x * d.y - d.x * e1.y) / det);
+        Vec3::new(-b1 - b2, b1, b2)
+    };
+    Some([step(Vec2::X), step(Vec2::Y)])
 }
 
 /// A world direction in the atlas' tangent frame at a point of an atlas triangle: (along
@@ -238,4 +304,36 @@ fn inside(material: &Material, uv: Vec2) -> Vec2 {
 /// Per vertex of the synthesized surface, its colour under `blend` (Tong §6's vertex mode).
 pub fn vertex_colours(scene: &Scene, material: &Material, blend: &Blend16) -> Vec<Vec3> {
     scene.uv.par_iter().with_min_len(4096).map(|uv| material.shade(blend, uv.x, uv.y)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::export::layout::AtlasMesh;
+    use crate::mesh::textured::TexturedMesh;
+
+    #[test]
+    fn a_texel_step_moves_a_point_one_texel_across_the_atlas() {
+        let uv = vec![Vec2::new(0.1, 0.2), Vec2::new(0.7, 0.25), Vec2::new(0.3, 0.9)];
+        let mesh = TexturedMesh { positions: vec![Vec3::ZERO; 3], triangles: vec![[0, 1, 2]], uvs: None };
+        let atlas = AtlasMesh {
+            source_vertex: vec![0, 1, 2],
+            uv,
+            triangles: vec![[0, 1, 2]],
+            chart: vec![0],
+            generated: true,
+        };
+        let target = Target { mesh: &mesh, atlas: &atlas, normals: &[], tangents: &[] };
+        let (width, height) = (64, 32);
+        let size = Vec2::new(width as f32, height as f32);
+        let [dx, dy] = texel_steps(&target, [0, 1, 2], (width, height)).unwrap();
+        let at = |b: Vec3| (0..3).map(|k| b[k] * atlas.uv[k] * size).sum::<Vec2>();
+        let centre = Vec3::new(0.3, 0.3, 0.4);
+        assert!((at(centre + dx) - at(centre) - Vec2::X).length() < 1e-4);
+        assert!((at(centre + dy) - at(centre) - Vec2::Y).length() < 1e-4);
+        assert!((dx.element_sum()).abs() < 1e-6 && (dy.element_sum()).abs() < 1e-6, "weights still sum to 1");
+        let flat = AtlasMesh { uv: vec![Vec2::ZERO; 3], ..atlas.clone() };
+        let target = Target { atlas: &flat, ..target };
+        assert!(texel_steps(&target, [0, 1, 2], (width, height)).is_none());
+    }
 }

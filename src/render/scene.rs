@@ -11,6 +11,7 @@ use crate::{Error, Remedy, Result};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 /// How a point between vertices is shaded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -21,10 +22,10 @@ pub enum Mode {
     /// Per pixel, one lookup of the sample at the pixel's synthesized coordinate
     /// ([`Scene::point_uv`]): each corner of the triangle predicts a coordinate (its own plus
     /// the pixel's offset in its tangent frame, in texels); corners that agree (one copy of
-    /// the sample) are interpolated, and where they disagree (a seam between copies) the
-    /// side with the larger barycentric weight is taken whole. Shows sample-resolution detail
-    /// between vertices, crisp inside copies and with a hard cut at seams, where blending the
-    /// corners' lookups would blur and double the image.
+    /// the sample) are interpolated, and where they disagree (a seam between copies) one
+    /// side is taken whole, cut along the seam smoothed over two rings of vertices. Shows
+    /// sample-resolution detail between vertices, crisp inside copies and with a hard cut at
+    /// seams, where blending the corners' lookups would blur and double the image.
     #[default]
     Pixel,
 }
@@ -53,6 +54,9 @@ pub struct Scene {
     /// triangle, as a rasteriser does, instead of letting each corner predict from its tangent
     /// frame.
     pub mapped: bool,
+    /// Per vertex, how much its neighbourhood continues its copy of the sample
+    /// ([`Scene::belonging`]), worked out on first use (it needs the material's wrap).
+    belonging: OnceLock<Vec<f32>>,
 }
 
 impl Scene {
@@ -60,14 +64,13 @@ impl Scene {
     /// labels and texel size (not texture-mapped).
     pub fn from_surface_map(map: SurfaceMap) -> Scene {
         let uv = (0..map.state.uv.len()).map(|v| Vec2::from(map.state.coordinate(v))).collect();
-        Scene {
-            mesh: map.mesh,
-            frames: map.frames,
-            uv,
-            labels: map.state.labels,
-            texel: map.texel,
-            mapped: false,
-        }
+        Scene::new(map.mesh, map.frames, uv, map.state.labels, map.texel)
+    }
+
+    /// A synthesized scene (not texture-mapped) from its parts: per vertex a frame, a sample
+    /// coordinate and a texton label, and one sample texel in model units.
+    pub fn new(mesh: Mesh, frames: Frames, uv: Vec<Vec2>, labels: Vec<u16>, texel: f32) -> Scene {
+        Scene { mesh, frames, uv, labels, texel, mapped: false, belonging: OnceLock::new() }
     }
 
     /// A texture-mapped result: one vertex per distinct (vertex, sample coordinate) corner,
@@ -114,7 +117,7 @@ impl Scene {
         }
         let mesh = Mesh::from_split_parts(positions, triangles, normals);
         let frames = Frames::from_directions(mesh.normals().unwrap_or(&[]), &along);
-        Ok(Scene { mesh, frames, uv, labels, texel: map.texel, mapped: true })
+        Ok(Scene { mesh, frames, uv, labels, texel: map.texel, mapped: true, belonging: OnceLock::new() })
     }
 
     /// The vertex normals.
@@ -157,10 +160,12 @@ impl Scene {
     /// of vertices `corners`, shows: on a texture-mapped scene the corners' coordinates
     /// interpolated; otherwise each corner's prediction ([`Scene::predict_uv`]), grouped by
     /// agreement (within [`AGREE_TEXELS`], across the wrap of a tileable sample), the group
-    /// of the largest total weight interpolated. Inside one copy of the sample all three
-    /// agree and the coordinate runs on continuously; at a seam the cut falls where the two
-    /// sides weigh the same, which on a shared edge depends on its two vertices only, so
-    /// neighbouring triangles cut alike. Returns the coordinate and the weight each corner
+    /// with the largest claim interpolated. A corner claims the point for its own group by
+    /// its weight times its [`Scene::belonging`], and for the others by its weight times
+    /// the rest. Inside one copy of the sample all three agree and the coordinate runs on
+    /// continuously; at a seam the cut falls where the two sides' claims balance, which on
+    /// a shared edge depends on its two vertices only, so neighbouring triangles cut alike.
+    /// Returns the coordinate and the weight each corner
     /// had in it (zero outside the chosen group), for lookups that follow the corners' frames.
     pub fn point_uv(&self, material: &Material, corners: [u32; 3], bary: Vec3, p: Vec3) -> (Vec2, [f32; 3]) {
         let w = bary.to_array();
@@ -169,29 +174,78 @@ impl Scene {
             return (q, w);
         }
         let q = corners.map(|v| self.predict_uv(v as usize, p));
-        let size = Vec2::new(material.width() as f32, material.height() as f32);
-        // The offset from a to b, across the wrap when the sample tiles.
-        let offset = |a: Vec2, b: Vec2| {
-            let d = b - a;
-            if material.tileable {
-                d - size * (d / size).round()
-            } else {
-                d
-            }
-        };
+        let offset = |a: Vec2, b: Vec2| wrapped_offset(material, a, b);
         let agree = |i: usize, j: usize| offset(q[i], q[j]).length_squared() <= AGREE_TEXELS * AGREE_TEXELS;
         let group_weight = |i: usize| (0..3).filter(|&j| agree(i, j)).map(|j| w[j]).sum::<f32>();
-        let lead = (0..3)
-            .max_by(|&i, &j| group_weight(i).total_cmp(&group_weight(j)).then(w[i].total_cmp(&w[j])))
-            .unwrap_or(0);
+        let belonging = self.belonging(material);
+        let belongs = |j: usize| belonging[corners[j] as usize];
+        let claim = |i: usize| {
+            (0..3).map(|j| w[j] * if agree(i, j) { belongs(j) } else { 1.0 - belongs(j) }).sum::<f32>()
+        };
+        let lead =
+            (0..3).max_by(|&i, &j| claim(i).total_cmp(&claim(j)).then(w[i].total_cmp(&w[j]))).unwrap_or(0);
         let mut weights = [0.0; 3];
-        let total = group_weight(lead).max(f32::MIN_POSITIVE);
+        // A point can go to a group none of whose corners weighs on it (at a lone vertex of
+        // another copy): its corners then share it equally.
+        let (total, members) = (group_weight(lead), (0..3).filter(|&j| agree(lead, j)).count());
         let mut uv = q[lead];
         for j in (0..3).filter(|&j| agree(lead, j)) {
-            weights[j] = w[j] / total;
+            weights[j] = if total > 0.0 { w[j] / total } else { 1.0 / members as f32 };
             uv += weights[j] * offset(q[lead], q[j]);
         }
         (uv, weights)
+    }
+
+    /// Per vertex, the share of its neighbours within two rings (and itself) whose
+    /// prediction of its coordinate agrees with it ([`AGREE_TEXELS`], across `material`'s
+    /// wrap): 1 inside a copy of the sample, about a half on a straight seam, below a half
+    /// on a vertex that pokes into its neighbours' copy. [`Scene::point_uv`] cuts between
+    /// copies where these balance.
+    ///
+    /// Why: each vertex chooses its texel on its own, so the boundary between two copies runs
+    /// zigzag from vertex to vertex, and a cut by the corners' barycentric weights alone
+    /// follows every zigzag: at the close range a model is looked at, where a texel spans
+    /// several pixels, every copy's edge is a sawtooth (docs/surfaces.md). Weighing each
+    /// corner by its share follows the seam averaged over two rings instead, and a lone vertex
+    /// of another copy is drawn as the copy around it. Three rings or more straighten the
+    /// seam further but leave small curled islands where three copies meet (choc swirl on
+    /// the bunny, looked at in the CPU renderer at 2400²).
+    pub fn belonging(&self, material: &Material) -> &[f32] {
+        self.belonging.get_or_init(|| {
+            let rings = crate::mesh::topology::one_rings(&self.mesh);
+            let positions = self.mesh.positions();
+            (0..positions.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map_init(Vec::new, |near: &mut Vec<u32>, v| {
+                    near.clear();
+                    for &u in rings.ring(v) {
+                        near.push(u);
+                        near.extend_from_slice(rings.ring(u as usize));
+                    }
+                    near.sort_unstable();
+                    near.dedup();
+                    let others: Vec<usize> = near.iter().map(|&u| u as usize).filter(|&u| u != v).collect();
+                    let agreeing = others
+                        .iter()
+                        .filter(|&&u| {
+                            let d = wrapped_offset(material, self.uv[v], self.predict_uv(u, positions[v]));
+                            d.length_squared() <= AGREE_TEXELS * AGREE_TEXELS
+                        })
+                        .count();
+                    (1 + agreeing) as f32 / (1 + others.len()) as f32
+                })
+                .collect()
+        })
+    }
+
+    /// Whether the corners of triangle `corners` predict point `p` in more than one copy of
+    /// the sample: whether a seam between copies crosses the triangle near `p`.
+    pub fn cuts_copies(&self, material: &Material, corners: [u32; 3], p: Vec3) -> bool {
+        let q = corners.map(|v| self.predict_uv(v as usize, p));
+        let apart =
+            |a: Vec2, b: Vec2| wrapped_offset(material, a, b).length_squared() > AGREE_TEXELS * AGREE_TEXELS;
+        !self.mapped && (apart(q[0], q[1]) || apart(q[0], q[2]) || apart(q[1], q[2]))
     }
 
     /// The colour of point `p` with barycentric weights `bary` in triangle `tri`, before
@@ -246,7 +300,19 @@ impl Scene {
         let n = mesh.vertex_count();
         let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
         let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
-        Ok(Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false })
+        Ok(Scene::new(mesh, frames, uv, vec![0; n], 1.0))
+    }
+}
+
+/// The offset from `a` to `b` in sample texels, across the wrap when `material`'s sample
+/// tiles.
+pub(crate) fn wrapped_offset(material: &Material, a: Vec2, b: Vec2) -> Vec2 {
+    let d = b - a;
+    if material.tileable {
+        let size = Vec2::new(material.width() as f32, material.height() as f32);
+        d - size * (d / size).round()
+    } else {
+        d
     }
 }
 
@@ -414,4 +480,123 @@ pub fn open_surface(path: &Path, analysis: Option<&Path>, verify: bool) -> Resul
         crate::analysis::store::verify_fingerprint(&dir, path, comment(ANALYSIS_FINGERPRINT_KEY))?;
     }
     Ok((scene, dir))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::btf::directions::{Direction, DirectionPair};
+
+    /// Side of the test grid, in vertices one texel apart.
+    const SIDE: usize = 16;
+    /// The column where the second copy begins, on even rows; odd rows begin one later.
+    const SEAM: usize = 8;
+    /// A vertex of the second copy alone inside the first.
+    const LONE: [usize; 2] = [3, 9];
+
+    /// A flat grid of two copies of the sample: the first at (10, 10) texels from each
+    /// vertex's place, the second at (40, 10), meeting on a zigzag of one vertex a row (as a
+    /// mesh's vertices choosing on their own leave it), with one vertex of the second copy
+    /// inside the first.
+    fn two_copies(belonging: Option<f32>) -> (Scene, Material) {
+        let n = SIDE * SIDE;
+        let positions: Vec<Vec3> =
+            (0..n).map(|v| Vec3::new((v % SIDE) as f32, 0.0, (v / SIDE) as f32)).collect();
+        let mut triangles = Vec::new();
+        for j in 0..SIDE - 1 {
+            for i in 0..SIDE - 1 {
+                let (a, b, c, d) =
+                    (j * SIDE + i, j * SIDE + i + 1, (j + 1) * SIDE + i, (j + 1) * SIDE + i + 1);
+                triangles.push([a, b, d].map(|v| v as u32));
+                triangles.push([a, d, c].map(|v| v as u32));
+            }
+        }
+        let second = |i: usize, j: usize| i >= SEAM + j % 2 || [i, j] == LONE;
+        let uv = (0..n)
+            .map(|v| {
+                let (i, j) = (v % SIDE, v / SIDE);
+                let x = if second(i, j) { 40.0 } else { 10.0 };
+                Vec2::new(i as f32 + x, j as f32 + 10.0)
+            })
+            .collect();
+        let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
+        let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
+        let belonging = match belonging {
+            Some(share) => OnceLock::from(vec![share; n]),
+            None => OnceLock::new(),
+        };
+        let scene = Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false, belonging };
+        let pair = DirectionPair { light: Direction::NORMAL, view: Direction::NORMAL };
+        let material = Material::new(64, 32, vec![0.5; 64 * 32 * 3], vec![pair]).unwrap();
+        (scene, material)
+    }
+
+    /// The sample coordinate `scene` shows at grid point (x, z), and its corners' weights.
+    fn shown_with_weights(scene: &Scene, material: &Material, x: f32, z: f32) -> (Vec2, [f32; 3]) {
+        let (i, j) = ((x.floor() as usize).min(SIDE - 2), (z.floor() as usize).min(SIDE - 2));
+        let (fx, fz) = (x - i as f32, z - j as f32);
+        let at = |di: usize, dj: usize| ((j + dj) * SIDE + i + di) as u32;
+        let (corners, bary) = if fx >= fz {
+            ([at(0, 0), at(1, 0), at(1, 1)], Vec3::new(1.0 - fx, fx - fz, fz))
+        } else {
+            ([at(0, 0), at(1, 1), at(0, 1)], Vec3::new(1.0 - fz, fx, fz - fx))
+        };
+        scene.point_uv(material, corners, bary, Vec3::new(x, 0.0, z))
+    }
+
+    /// The sample coordinate `scene` shows at grid point (x, z).
+    fn shown(scene: &Scene, material: &Material, x: f32, z: f32) -> Vec2 {
+        shown_with_weights(scene, material, x, z).0
+    }
+
+    /// Per row (halfway between vertex rows), where the second copy begins.
+    fn cut_per_row(scene: &Scene, material: &Material) -> Vec<f32> {
+        (2..SIDE - 3)
+            .map(|j| {
+                let z = j as f32 + 0.5;
+                let x = (0..(SIDE - 1) * 100)
+                    .map(|k| k as f32 / 100.0)
+                    .find(|&x| x > (LONE[0] + 2) as f32 && shown(scene, material, x, z).x - x > 25.0);
+                x.expect("the second copy shows on every row")
+            })
+            .collect()
+    }
+
+    #[test]
+    fn inside_a_copy_every_vertex_belongs_wholly_and_on_the_seam_about_half() {
+        let (scene, material) = two_copies(None);
+        let belonging = scene.belonging(&material);
+        assert_eq!(belonging[4 * SIDE + 2], 1.0);
+        assert_eq!(belonging[4 * SIDE + 13], 1.0);
+        let on_seam = belonging[4 * SIDE + SEAM];
+        assert!((0.3..0.7).contains(&on_seam), "{on_seam}");
+        let lone = belonging[LONE[1] * SIDE + LONE[0]];
+        assert!(lone < 0.1, "the lone vertex belongs {lone}");
+    }
+
+    #[test]
+    fn a_lone_vertex_of_another_copy_is_drawn_as_the_copy_around_it() {
+        let [x, z] = LONE.map(|c| c as f32);
+        let (corner_cut, material) = two_copies(Some(1.0));
+        assert!((shown(&corner_cut, &material, x, z) - Vec2::new(x + 40.0, z + 10.0)).length() < 1e-4);
+        let (scene, _) = two_copies(None);
+        let (uv, weights) = shown_with_weights(&scene, &material, x, z);
+        assert!((uv - Vec2::new(x + 10.0, z + 10.0)).length() < 1e-4, "{uv}");
+        // None of the copy's corners weighs on the vertex's own point; they share it.
+        assert!((weights.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{weights:?}");
+    }
+
+    #[test]
+    fn a_zigzag_seam_is_cut_straighter_than_its_vertices_run() {
+        let spread = |cuts: Vec<f32>| {
+            let mean = cuts.iter().sum::<f32>() / cuts.len() as f32;
+            (cuts.iter().map(|c| (c - mean).powi(2)).sum::<f32>() / cuts.len() as f32).sqrt()
+        };
+        let (corner_cut, material) = two_copies(Some(1.0));
+        let (scene, _) = two_copies(None);
+        let (before, after) =
+            (spread(cut_per_row(&corner_cut, &material)), spread(cut_per_row(&scene, &material)));
+        assert!(before > 0.2, "the corners alone cut the zigzag: spread {before}");
+        assert!(after < 0.5 * before, "the cut's spread across rows: {after} against {before}");
+    }
 }

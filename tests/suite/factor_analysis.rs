@@ -255,7 +255,7 @@ fn wavy_field() -> Scene {
     let count = mesh.vertex_count();
     let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; count]);
-    Scene { mesh, frames, uv, labels: vec![0; count], texel: 1.0, mapped: false }
+    Scene::new(mesh, frames, uv, vec![0; count], 1.0)
 }
 
 #[test]

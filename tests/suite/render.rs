@@ -32,7 +32,7 @@ fn identity_grid(x: (i32, i32), z: (i32, i32)) -> Scene {
     let n = mesh.vertex_count();
     let uv = mesh.positions().iter().map(|p| Vec2::new(p.x, p.z)).collect();
     let frames = Frames::from_directions(&vec![Vec3::Y; n], &vec![Vec3::X; n]);
-    Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false }
+    Scene::new(mesh, frames, uv, vec![0; n], 1.0)
 }
 
 /// An orthographic camera straight down -Y whose pixel (i, j) centre falls on (i, 0, j)
@@ -112,8 +112,7 @@ fn a_sphere_above_a_plane_casts_its_shadow_where_geometry_says() {
     let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
-    let scene =
-        Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene = Scene::new(mesh, frames, vec![Vec2::ZERO; n], vec![0; n], 1.0);
     let white =
         DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
     let material = Material::new(1, 1, vec![1.0; 3], vec![white]).unwrap();
@@ -405,8 +404,7 @@ fn four_samples_per_pixel_bring_edges_closer_to_a_64_sample_reference_than_one()
     let mesh = Mesh::new(positions, triangles).unwrap().with_normals();
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
-    let scene =
-        Scene { mesh, frames, uv: vec![Vec2::ZERO; n], labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene = Scene::new(mesh, frames, vec![Vec2::ZERO; n], vec![0; n], 1.0);
     let white =
         DirectionPair { light: btfsynth::btf::Direction::NORMAL, view: btfsynth::btf::Direction::NORMAL };
     let material = Material::new(1, 1, vec![0.8; 3], vec![white]).unwrap();
@@ -522,7 +520,7 @@ fn relighting_only_what_the_camera_can_see_keeps_every_visible_triangle_and_its_
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
     let uv = (0..n).map(|v| Vec2::new((v % 5) as f32, (v / 5 % 4) as f32)).collect();
-    let scene = Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene = Scene::new(mesh, frames, uv, vec![0; n], 1.0);
     let (w, h) = (5, 4);
     let pairs = DirectionSet::Grid(16).pairs();
     let pixels = (0..pairs.len() * w * h * 3).map(|i| btfsynth::seeded::unit(13, i as i64, 0, 0)).collect();
@@ -581,7 +579,7 @@ fn shading_the_environment_only_where_the_camera_may_look_changes_no_pixel() {
     let n = mesh.vertex_count();
     let frames = Frames::from_directions(mesh.normals().unwrap(), &vec![Vec3::X; n]);
     let uv = (0..n).map(|v| Vec2::new((v % 5) as f32 + 0.25, (v / 5 % 4) as f32)).collect();
-    let scene = Scene { mesh, frames, uv, labels: vec![0; n], texel: 1.0, mapped: false };
+    let scene = Scene::new(mesh, frames, uv, vec![0; n], 1.0);
     let material = cosine_material(5, 4);
     let tracer = Tracer::new(&scene.mesh);
     let camera = Camera::framing(Vec3::new(0.0, 3.0, 0.0), 15.0, Vec3::new(0.3, 0.6, 1.0), false, (96, 96));

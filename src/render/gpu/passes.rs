@@ -26,7 +26,8 @@ struct GpuVertex {
     t: [f32; 3],
     v: f32,
     n: [f32; 3],
-    pad: f32,
+    /// The vertex's share in its copy ([`Scene::belonging`]).
+    belonging: f32,
 }
 
 /// `surface.wgsl`'s `Uniforms` (the shadow pass reads only the first matrix).
@@ -150,7 +151,7 @@ impl Passes {
             ..Default::default()
         });
         let places = storage(device, "image table", bytemuck::cast_slice(&image_table));
-        let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene)));
+        let vertices = storage(device, "vertices", bytemuck::cast_slice(&gpu_vertices(scene, material)));
         let corners: Vec<u32> = scene.mesh.triangles().iter().flatten().copied().collect();
         // also the index buffer of the depth-only passes
         let corner_buffer = buffer(
@@ -429,8 +430,10 @@ fn sample_values(
     }
 }
 
-fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
+fn gpu_vertices(scene: &Scene, material: &Material) -> Vec<GpuVertex> {
     let (p, f) = (scene.mesh.positions(), &scene.frames);
+    // Unused by a texture-mapped scene's shader path (its corners are interpolated).
+    let belonging = if scene.mapped { &[][..] } else { scene.belonging(material) };
     (0..p.len())
         .map(|v| GpuVertex {
             position: p[v].to_array(),
@@ -440,7 +443,7 @@ fn gpu_vertices(scene: &Scene) -> Vec<GpuVertex> {
             t: f.t[v].to_array(),
             v: scene.uv[v].y,
             n: f.n[v].to_array(),
-            pad: 0.0,
+            belonging: belonging.get(v).copied().unwrap_or(1.0),
         })
         .collect()
 }
