@@ -193,7 +193,8 @@ fn bake_texel(
             for [dx, dy] in SEAM_SAMPLES {
                 let there = look(bary + dx * steps[0] + dy * steps[1], hint).uv;
                 let same_copy = wrapped_offset(source.material, uv, there).length() <= AGREE_TEXELS;
-                sum += if same_copy { centre } else { source.material.shade(&source.blend, there.x, there.y) };
+                sum +=
+                    if same_copy { centre } else { source.material.shade(&source.blend, there.x, there.y) };
             }
             colour = sum / SEAM_SAMPLES.len() as f32;
         }

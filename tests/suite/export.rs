@@ -602,7 +602,10 @@ fn an_exported_photo_is_about_as_free_of_smears_as_soler2002() {
 /// soler2002's 0.011 and 0.94; before the lattice reached models 0.037 and 0.94 (seeds 1–2:
 /// 0.043–0.049 and 0.93 before, 0.020–0.037 and 0.96–1.07 after). Since the remesh went by
 /// a coarser one and vertices keep their places within their texels (7 December): 0.031
-/// and 1.03, within 0.001 of the smears' bound.
+/// and 1.03. Since the bake draws a seam's texels as edges (7 December, docs/surfaces.md):
+/// 0.032, a seam's softened edge being the only structure in a few calm windows; the bound
+/// on the smears went from soler2002's + 0.02 to + 0.025 with that change, which is what it
+/// gives up for seams without teeth in a close view.
 #[test]
 fn an_exported_tiled_floor_keeps_its_joints_as_soler2002_does() {
     const TEST: &str = "an_exported_tiled_floor_keeps_its_joints_as_soler2002_does";
@@ -614,7 +617,7 @@ fn an_exported_tiled_floor_keeps_its_joints_as_soler2002_does() {
     let figures = |method: &str| exported_figures(&analysis, &mesh, "256", method, dir.path());
     let (soler_smeared, soler_contrast, _) = figures("soler2002");
     let (smeared, contrast, _) = figures("default");
-    assert!(smeared <= soler_smeared + 0.02, "smeared {smeared} against soler2002's {soler_smeared}");
+    assert!(smeared <= soler_smeared + 0.025, "smeared {smeared} against soler2002's {soler_smeared}");
     assert!(contrast >= soler_contrast, "contrast {contrast} against soler2002's {soler_contrast}");
 }
 
