@@ -218,22 +218,20 @@ impl Scene {
                 .into_par_iter()
                 .with_min_len(1024)
                 .map_init(Vec::new, |near: &mut Vec<u32>, v| {
+                    // The vertex itself, its ring and theirs (its own prediction agrees).
                     near.clear();
+                    near.push(v as u32);
                     for &u in rings.ring(v) {
                         near.push(u);
                         near.extend_from_slice(rings.ring(u as usize));
                     }
                     near.sort_unstable();
                     near.dedup();
-                    let others: Vec<usize> = near.iter().map(|&u| u as usize).filter(|&u| u != v).collect();
-                    let agreeing = others
-                        .iter()
-                        .filter(|&&u| {
-                            let d = wrapped_offset(material, self.uv[v], self.predict_uv(u, positions[v]));
-                            d.length_squared() <= AGREE_TEXELS * AGREE_TEXELS
-                        })
-                        .count();
-                    (1 + agreeing) as f32 / (1 + others.len()) as f32
+                    let agrees = |u: usize| {
+                        let d = wrapped_offset(material, self.uv[v], self.predict_uv(u, positions[v]));
+                        d.length_squared() <= AGREE_TEXELS * AGREE_TEXELS
+                    };
+                    near.iter().filter(|&&u| agrees(u as usize)).count() as f32 / near.len() as f32
                 })
                 .collect()
         })
