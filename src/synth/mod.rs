@@ -238,7 +238,7 @@ pub fn synthesize(
             if let (Some(coarse_owner), true) = (&owner, recipe.start.inherits()) {
                 owner = Some(start::inherit_owner(target, coarse_owner));
             }
-            tracing::debug!("level {l}: start in {:.2?}", started.elapsed());
+            tracing::debug!("level {l}: start in {:.2?}{}", started.elapsed(), smear_note(target, &current));
             let move_costs = preset
                 .keep_interiors
                 .zip(owner.as_deref())
@@ -296,7 +296,11 @@ pub fn synthesize(
                     Some(stats) => stats,
                     None => run_pass(p, &level, &mut current, params, &schedule, &mut rng)?,
                 };
-                tracing::debug!("level {l}: a pass done at {:.2?}", started.elapsed());
+                tracing::debug!(
+                    "level {l}: a pass done at {:.2?}{}",
+                    started.elapsed(),
+                    smear_note(target, &current)
+                );
                 progress.advance(1);
             }
             let passes = recipe.passes.len() + usize::from(recipe.start.inherits());
@@ -314,6 +318,16 @@ pub fn synthesize(
         }
         Ok((state, reports))
     })
+}
+
+/// The coordinate map's smear ([`crate::eval::coords::smear`]) for a debug line, so a
+/// surface's log says which step makes its smeared stretches; empty unless debugging.
+fn smear_note(target: &TargetLevel, state: &State) -> String {
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        format!(", smear {:.4}", crate::eval::coords::smear(target, state))
+    } else {
+        String::new()
+    }
 }
 
 /// Each vertex's texel on the start's patches, and its place within it.
