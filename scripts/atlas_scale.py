@@ -11,7 +11,8 @@ the atlas gets the local area scale of the coordinate map (sample texels per sur
 squared: 1 where a copy lies at the sample's scale, below 1 where it is magnified). The
 smeared flag is eval's: the window's luma deviation below the sample's flattest 5% at the
 same scale. Prints the share of windows and of smeared windows per band of scale.
-Needs numpy and pillow.
+Needs numpy and pillow. For a photograph's surface (the atlas is the export's first image),
+up to 256 texels a side: the coordinates travel as 8-bit values.
 """
 import argparse
 import io
