@@ -79,8 +79,9 @@ pub struct SynthArgs {
     /// levels). Excludes --scale and --texels-across.
     #[arg(long, group = "density")]
     vertices: Option<usize>,
-    /// Tangent directions: smooth (a relaxed field), axis:x,y,z (a world direction
-    /// projected), or a JSON file of constraints {"constraints": [{"vertex"|"point", "direction"}]}.
+    /// Tangent directions: smooth (a seeded field relaxed over a vertex hierarchy, turning as
+    /// little as the surface allows), axis:x,y,z (a world direction projected), or a JSON
+    /// file of constraints {"constraints": [{"vertex"|"point", "direction"}]}.
     #[arg(long, default_value = "smooth")]
     orient: String,
     /// Candidates per kNN list (at most the analysis' k; default: the analysis' k).
