@@ -23,7 +23,7 @@ use crate::maps::{MapKind, MaterialMap};
 use crate::mesh::bvh::TriangleBvh;
 use crate::mesh::textured::TexturedMesh;
 use crate::progress::Progress;
-use crate::render::scene::{wrapped_offset, AGREE_TEXELS};
+use crate::render::scene::one_copy;
 use crate::render::{Blend16, Material, Scene};
 use crate::{Error, Result};
 use glam::{Vec2, Vec3, Vec4};
@@ -192,9 +192,11 @@ fn bake_texel(
             let mut sum = Vec3::ZERO;
             for [dx, dy] in SEAM_SAMPLES {
                 let there = look(bary + dx * steps[0] + dy * steps[1], hint).uv;
-                let same_copy = wrapped_offset(source.material, uv, there).length() <= AGREE_TEXELS;
-                sum +=
-                    if same_copy { centre } else { source.material.shade(&source.blend, there.x, there.y) };
+                sum += if one_copy(source.material, uv, there) {
+                    centre
+                } else {
+                    source.material.shade(&source.blend, there.x, there.y)
+                };
             }
             colour = sum / SEAM_SAMPLES.len() as f32;
         }

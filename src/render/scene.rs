@@ -175,7 +175,7 @@ impl Scene {
         }
         let q = corners.map(|v| self.predict_uv(v as usize, p));
         let offset = |a: Vec2, b: Vec2| wrapped_offset(material, a, b);
-        let agree = |i: usize, j: usize| offset(q[i], q[j]).length_squared() <= AGREE_TEXELS * AGREE_TEXELS;
+        let agree = |i: usize, j: usize| one_copy(material, q[i], q[j]);
         let group_weight = |i: usize| (0..3).filter(|&j| agree(i, j)).map(|j| w[j]).sum::<f32>();
         let belonging = self.belonging(material);
         let belongs = |j: usize| belonging[corners[j] as usize];
@@ -227,10 +227,7 @@ impl Scene {
                     }
                     near.sort_unstable();
                     near.dedup();
-                    let agrees = |u: usize| {
-                        let d = wrapped_offset(material, self.uv[v], self.predict_uv(u, positions[v]));
-                        d.length_squared() <= AGREE_TEXELS * AGREE_TEXELS
-                    };
+                    let agrees = |u: usize| one_copy(material, self.uv[v], self.predict_uv(u, positions[v]));
                     near.iter().filter(|&&u| agrees(u as usize)).count() as f32 / near.len() as f32
                 })
                 .collect()
@@ -241,8 +238,7 @@ impl Scene {
     /// the sample: whether a seam between copies crosses the triangle near `p`.
     pub fn cuts_copies(&self, material: &Material, corners: [u32; 3], p: Vec3) -> bool {
         let q = corners.map(|v| self.predict_uv(v as usize, p));
-        let apart =
-            |a: Vec2, b: Vec2| wrapped_offset(material, a, b).length_squared() > AGREE_TEXELS * AGREE_TEXELS;
+        let apart = |a: Vec2, b: Vec2| !one_copy(material, a, b);
         !self.mapped && (apart(q[0], q[1]) || apart(q[0], q[2]) || apart(q[1], q[2]))
     }
 
@@ -302,9 +298,15 @@ impl Scene {
     }
 }
 
+/// Whether sample coordinates `a` and `b` lie in one copy of the sample: within
+/// [`AGREE_TEXELS`] of each other, across the wrap when `material`'s sample tiles.
+pub(crate) fn one_copy(material: &Material, a: Vec2, b: Vec2) -> bool {
+    wrapped_offset(material, a, b).length_squared() <= AGREE_TEXELS * AGREE_TEXELS
+}
+
 /// The offset from `a` to `b` in sample texels, across the wrap when `material`'s sample
 /// tiles.
-pub(crate) fn wrapped_offset(material: &Material, a: Vec2, b: Vec2) -> Vec2 {
+fn wrapped_offset(material: &Material, a: Vec2, b: Vec2) -> Vec2 {
     let d = b - a;
     if material.tileable {
         let size = Vec2::new(material.width() as f32, material.height() as f32);
