@@ -6,7 +6,7 @@ use super::picture::{
     colour_chi2, contrast, nearest_patch_energy, wrap_seam_energy, Picture, PATCH_SIDE, PATCH_STRIDE,
 };
 use super::quality::{picture_quality, PictureQuality};
-use super::repetition::Repetition;
+use super::repetition::{surface_repetition, Repetition, SurfacePlaces};
 use super::surface::{model_figures, TextureFigures};
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
@@ -103,6 +103,7 @@ pub fn evaluate_surface(
     let patches = surface_level(&map.mesh, &map.frames, map.texel, PATCH_SIDE)?;
     let images = SampleImages::open(analysis_dir)?;
     let (sample, tileable) = texton_level(analysis_dir, &map.state, name)?;
+    let places = SurfacePlaces { positions: map.mesh.positions(), frames: &map.frames, texel: map.texel };
     let probes = images
         .default_probes()
         .into_iter()
@@ -114,8 +115,7 @@ pub fn evaluate_surface(
                 patch_energy_coarse: f64::NAN,
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
-                // A surface has no image-space offsets; its renders are scored as pictures.
-                repetition: Repetition::NAN,
+                repetition: surface_repetition(&places, &map.state.uv, &picture, tileable),
             };
             ProbeQuality { probe, quality, wrap_seam_energy: None }
         })
