@@ -9,7 +9,8 @@
 # model and a close-up, scripts/surfaces_render.py), the renders put in one montage per case
 # (rows: routes; columns: whole, close-up), and the btfsynth routes' exported textures judged
 # by `btfsynth eval ANALYSIS MODEL.glb` (smeared share, detail, contrast, colour against the
-# sample at the same texels per sample texel). Their table is appended to
+# sample at the same texels per sample texel) and the repetition `eval` scores from each
+# result's own coordinates (on a plane's scale). Their table is appended to
 # OUT/table.md (delete it for a fresh one), so runs with other MESHES or PHOTOS add rows.
 #
 #   benches/surfaces.sh [OUT]        (default target/surfaces)
@@ -37,12 +38,15 @@ samples=${SAMPLES:-16}
 mkdir -p "$out"
 table=$out/table.md
 [ -f "$table" ] || {
-  echo "| photo | mesh | texels | route | smeared | detail | contrast | colour chi2 | synth s | export s |"
-  echo "|---|---|---|---|---|---|---|---|---|---|"
+  echo "| photo | mesh | texels | route | smeared | detail | contrast | colour chi2 | repetition | synth s | export s |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|"
 } > "$table"
 
 figures() { # analysis model.glb -> "smeared | detail | contrast | chi2"
   "$bin" -q eval "$1" "$2" --json | "$py" -c 'import json,sys; t=json.load(sys.stdin)["texture"]; print("%.3f | %.3f | %.3f | %.4f" % (t["smeared"], t["detail"], t["contrast"], t["colour_chi2"]))'
+}
+repetition() { # analysis result.ply -> its repetition ("-" where eval has none)
+  "$bin" -q eval "$1" "$2" --no-texture --json | "$py" -c 'import json,sys; r=json.load(sys.stdin)["probes"][0]["repetition"]; print("-" if r is None else "%.4f" % r)'
 }
 seconds() { local s=$(date +%s.%N); "$@" > /dev/null; echo "$(date +%s.%N) - $s" | bc; }
 
@@ -63,7 +67,7 @@ for photo in $photos; do
       extra=(); [ $route = soler2002 ] && extra=(--method soler2002)
       ts=$(seconds "$bin" -q synth "$an" "$data/meshes/$mesh" --texels-across "$texels" "${extra[@]}" -o "$case-$route.ply" --force)
       te=$(seconds "$bin" -q export "$case-$route.ply" -o "$case-$route.glb" --force)
-      echo "| $name | ${mesh%.*} | $texels | $route | $(figures "$an" "$case-$route.glb") | $ts | $te |" >> "$table"
+      echo "| $name | ${mesh%.*} | $texels | $route | $(figures "$an" "$case-$route.glb") | $(repetition "$an" "$case-$route.ply") | $ts | $te |" >> "$table"
       if [ "${BLENDER:-1}" = 1 ]; then
         "$py" "$root/scripts/surfaces_render.py" "$case-$route.glb" "$case-$route" --size "$size" --samples "$samples" > /dev/null
         row+=("$case-$route")
@@ -74,7 +78,7 @@ for photo in $photos; do
       tpu=$("$py" -c "import json,struct; b=open('$case-default.glb','rb').read(); n=struct.unpack('<I',b[12:16])[0]; j=json.loads(b[20:20+n]); print(1/j['materials'][0]['extras']['btfsynth']['sampleTexel'])")
       "$py" "$root/scripts/surfaces_render.py" "$case-default.glb" "$case-triplanar" --triplanar "$tile" --texels-per-unit "$tpu" --size "$size" --samples "$samples" > /dev/null
       row+=("$case-triplanar")
-      echo "| $name | ${mesh%.*} | $texels | triplanar | (rendered only) | | | | | |" >> "$table"
+      echo "| $name | ${mesh%.*} | $texels | triplanar | (rendered only) | | | | | | |" >> "$table"
     fi
     if [ ${#row[@]} -gt 0 ]; then
       "$py" - "$case-montage.png" "${row[@]}" <<'PY'

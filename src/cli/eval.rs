@@ -168,7 +168,7 @@ fn table(args: &EvalArgs, e: &Evaluation) -> String {
         let r = &q.repetition;
         if r.repetition.is_finite() {
             // A surface's offsets are texels along each vertex's frame, not pixels.
-            let unit = if e.kind == "surface" { "texels along the frame" } else { "px" };
+            let unit = if matches!(e.kind, "surface" | "uvmap") { "texels along the frame" } else { "px" };
             let _ = writeln!(
                 out,
                 "    repetition {:.3} (strongest at {},{} {unit}), unused sample {:.3}, use spread {:.2}",

@@ -30,7 +30,7 @@ pub struct Repetition {
     /// its share, a lattice of copies at all of it.
     pub repetition: f64,
     /// The strongest of those offsets, in result pixels (on a surface, in texels along the
-    /// frame of the vertex it is measured from).
+    /// frame of the point it is measured from).
     pub repeat_offset: [i32; 2],
     /// Share of the sample's places (cells of [`TOLERANCE`]² texels) that are the source of
     /// no result patch. Depends on the result's size; compare tools on equal sizes.
@@ -41,8 +41,7 @@ pub struct Repetition {
 }
 
 impl Repetition {
-    /// Where there is nothing to measure (pictures smaller than a patch, a texture-mapped
-    /// mesh).
+    /// Where there is nothing to measure (pictures smaller than a patch).
     pub const NAN: Repetition =
         Repetition { repetition: f64::NAN, repeat_offset: [0, 0], unused: f64::NAN, use_spread: f64::NAN };
 }
@@ -333,6 +332,48 @@ pub(crate) fn surface_repetition(
     Repetition { repetition, repeat_offset, unused, use_spread }
 }
 
+/// A texture-mapped mesh (pattern mapping's corner coordinates, texels) as points for
+/// [`surface_repetition`]: about one per texel on every face, each with the face's sample
+/// coordinate there and a frame along the face's own texture axes (where its `u` and `v`
+/// grow), so that a copy's offsets are measured along the copy as on a surface map.
+pub(crate) fn texture_mapped_points(
+    positions: &[glam::Vec3],
+    triangles: &[[u32; 3]],
+    corner_uv: &[[glam::Vec2; 3]],
+    texel: f32,
+) -> (Vec<glam::Vec3>, crate::mesh::frames::Frames, Vec<[i32; 2]>) {
+    let mut frames = crate::mesh::frames::Frames { s: Vec::new(), t: Vec::new(), n: Vec::new() };
+    let (mut points, mut uv) = (Vec::new(), Vec::new());
+    for (tri, c) in triangles.iter().zip(corner_uv) {
+        let p = tri.map(|v| positions[v as usize]);
+        let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+        let (d1, d2) = (c[1] - c[0], c[2] - c[0]);
+        let n = e1.cross(e2).normalize_or_zero();
+        let det = d1.x * d2.y - d2.x * d1.y;
+        // The direction along which u grows (the face's tangent); a face mapped to a line of
+        // the sample has none and is left out.
+        let along_u = ((e1 * d2.y - e2 * d1.y) / det).reject_from_normalized(n).normalize_or_zero();
+        if n == glam::Vec3::ZERO || !det.is_finite() || det == 0.0 || along_u == glam::Vec3::ZERO {
+            continue;
+        }
+        let texels = e1.cross(e2).length() / 2.0 / (texel * texel);
+        let k = ((2.0 * texels).sqrt().ceil() as usize).max(1);
+        for i in 0..k {
+            for j in 0..k - i {
+                let (b1, b2) = ((i as f32 + 1.0 / 3.0) / k as f32, (j as f32 + 1.0 / 3.0) / k as f32);
+                let b0 = 1.0 - b1 - b2;
+                points.push(p[0] * b0 + p[1] * b1 + p[2] * b2);
+                let at = c[0] * b0 + c[1] * b1 + c[2] * b2;
+                uv.push([at.x.round() as i32, at.y.round() as i32]);
+                frames.s.push(along_u);
+                frames.t.push(n.cross(along_u));
+                frames.n.push(n);
+            }
+        }
+    }
+    (points, frames, uv)
+}
+
 /// One vertex in [`STRIDE`]², spread over the mesh by a hash of its index (a remesher's
 /// order is spatial, so every 16th vertex could fall in rows).
 fn is_position(i: usize) -> bool {
@@ -434,6 +475,51 @@ mod tests {
         let uv: Vec<[i32; 2]> = places.iter().map(|p| uv(p.map(|c| c.round() as i32))).collect();
         let on = SurfacePlaces { positions: &mesh.0, frames: &mesh.1, texel: 1.0 };
         surface_repetition(&on, &uv, sample, false).repetition
+    }
+
+    /// A texture-mapped mesh is scored along its faces' own texture axes: a flat grid of
+    /// 16-texel squares (two faces each, turned a quarter turn every other square, as
+    /// pattern mapping turns its patches) each mapped to one of four places of the sample
+    /// in a 2×2 rhythm is a lattice; each mapped to a place of its own is not (measured 0.73
+    /// and 0.03; the bounds are the plane's).
+    #[test]
+    fn a_texture_mapped_mesh_s_lattice_of_squares_is_flagged_and_random_squares_are_not() {
+        let (sample, side, squares) = (gravel(), 16.0f32, 12);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let places: Vec<glam::Vec2> = (0..4)
+            .map(|_| glam::Vec2::new(rng.random_range(0..48) as f32, rng.random_range(0..48) as f32))
+            .collect();
+        let score = |place: &mut dyn FnMut(usize, usize) -> glam::Vec2| {
+            let (mut positions, mut triangles, mut corner_uv) = (Vec::new(), Vec::new(), Vec::new());
+            for (i, j) in (0..squares).flat_map(|j| (0..squares).map(move |i| (i, j))) {
+                let base = positions.len() as u32;
+                let (x, y) = (i as f32 * side, j as f32 * side);
+                positions.extend(
+                    [[x, y], [x + side, y], [x + side, y + side], [x, y + side]]
+                        .map(|[x, y]| Vec3::new(x, y, 0.0)),
+                );
+                let o = place(i, j);
+                let mut corners = [[0.0, 0.0], [side, 0.0], [side, side], [0.0, side]]
+                    .map(|[u, v]| o + glam::Vec2::new(u, v));
+                if (i + j) % 2 == 1 {
+                    corners.rotate_left(1);
+                }
+                triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+                corner_uv
+                    .extend([[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]);
+            }
+            let (points, frames, uv) = texture_mapped_points(&positions, &triangles, &corner_uv, 1.0);
+            let on = SurfacePlaces { positions: &points, frames: &frames, texel: 1.0 };
+            surface_repetition(&on, &uv, &sample, false).repetition
+        };
+        let on_lattice = score(&mut |i, j| places[(j % 2) * 2 + i % 2]);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let at_random = score(&mut |_, _| {
+            glam::Vec2::new(rng.random_range(0..48) as f32, rng.random_range(0..48) as f32)
+        });
+        assert!(on_lattice > 0.4, "squares on a lattice: repetition {on_lattice}");
+        assert!(at_random < 0.1, "squares from random places: repetition {at_random}");
+        assert!(on_lattice > 4.0 * at_random, "{on_lattice} vs {at_random}");
     }
 
     /// The plane's lattice / random-placement pair on a surface: nine pieces of a quarter of

@@ -6,7 +6,7 @@ use super::picture::{
     colour_chi2, contrast, nearest_patch_energy, wrap_seam_energy, Picture, PATCH_SIDE, PATCH_STRIDE,
 };
 use super::quality::{picture_quality, PictureQuality};
-use super::repetition::{surface_repetition, Repetition, SurfacePlaces};
+use super::repetition::{surface_repetition, texture_mapped_points, SurfacePlaces};
 use super::surface::{model_figures, TextureFigures};
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
@@ -133,10 +133,11 @@ pub fn evaluate_surface(
 
 /// A texture-mapped mesh (pattern mapping, [`crate::synth::patches`]) against the analysis in
 /// `analysis_dir`. It has no texton labels and no per-vertex coordinates, so only the
-/// image-space measures apply, on the surface itself: the patch energy of 7×7 windows
+/// image-space measures and repetition apply, on the surface itself: the patch energy of 7×7 windows
 /// resampled on the surface at one sample texel per pixel (3,000 faces drawn with seed 1;
 /// see [`crate::synth::patches::quality::seam_quality`]), the colour histogram and contrast of
-/// the texture at four points per face.
+/// the texture at four points per face, and the repetition of its coordinates at about one
+/// point per texel (see `eval::repetition`).
 pub fn evaluate_uv_map(
     analysis_dir: &Path,
     map: &crate::synth::patches::output::UvMap,
@@ -154,6 +155,7 @@ pub fn evaluate_uv_map(
         )));
     }
     let (mesh, scale) = (&map.mesh, 1.0 / map.texel);
+    let points = texture_mapped_points(&mesh.positions, &mesh.triangles, &map.corner_uv, map.texel);
     let mut seams = None;
     let probes = images
         .default_probes()
@@ -176,12 +178,13 @@ pub fn evaluate_uv_map(
                 (weighted(q.border, q.border_windows) + weighted(q.interior, q.interior_windows)) / windows;
             let colours = surface_colours(&map.corner_uv, &picture, map.tileable);
             seams.get_or_insert(q);
+            let on = SurfacePlaces { positions: &points.0, frames: &points.1, texel: map.texel };
             let quality = PictureQuality {
                 patch_energy,
                 patch_energy_coarse: f64::NAN,
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
-                repetition: Repetition::NAN,
+                repetition: surface_repetition(&on, &points.2, &picture, map.tileable),
             };
             Ok(ProbeQuality { probe, quality, wrap_seam_energy: None })
         })
