@@ -374,8 +374,10 @@ pub(crate) fn texture_mapped_points(
     (points, frames, uv)
 }
 
-/// One vertex in [`STRIDE`]², spread over the mesh by a hash of its index (a remesher's
-/// order is spatial, so every 16th vertex could fall in rows).
+/// One vertex in [`STRIDE`]²: those whose index falls in the first 16th of the golden-ratio
+/// sequence (gaps of unequal lengths, where a remesher's spatial order could put every 16th
+/// vertex in rows). Partners are every vertex, so which ones are positions does not bias
+/// the offsets.
 fn is_position(i: usize) -> bool {
     (i as u64).wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 60 == 0
 }
