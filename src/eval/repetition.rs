@@ -1,7 +1,7 @@
 //! Repetition, from the pictures alone (so another tool's result is scored by the same code):
 //! how strongly the same sample places recur at regular offsets in a result, and how evenly
 //! the result uses its sample. A surface map is scored from its vertices' coordinates, on
-//! the same scale ([`surface_repetition`]).
+//! the same scale (`surface_repetition`, [`SURFACE_REACH`]).
 //!
 //! Patch energy cannot see repetition: a verbatim copy scores zero wherever it is pasted. A
 //! tiled look is the same distinctive vein, knot or blotch at the same offset again and
