@@ -25,6 +25,11 @@ use std::path::PathBuf;
   copy           largest contiguously copied patch over the sample's area (about 1 or more:
                  the sample was copied whole, a tiling rather than a synthesis)
   coherence      mean output vertices per contiguously copied patch
+  repetition     the same sample places recurring at one offset (0: none; a tiling of a piece
+                 of the sample 0.4-1; the peers score 0.01-0.03 on organic photographs); on a
+                 model, from its coordinates, offsets in texels along each point's frame
+  unused, use spread   share of the sample no part of the result comes from; how unevenly
+                 the sample is used (both depend on the result's size)
   texton chi2, texton energy   Tong's texton-space figures (histogram, distance through Γ)
   texture (an exported .glb/.gltf, or a surface map exported in memory): its base colour on
     the surface against the sample resampled to the same texels per sample texel:
