@@ -1,7 +1,7 @@
 //! Repetition, from the pictures alone (so another tool's result is scored by the same code):
 //! how strongly the same sample places recur at regular offsets in a result, and how evenly
 //! the result uses its sample. A surface map is scored from its vertices' coordinates, on
-//! the same scale (`surface_repetition`, [`SURFACE_REACH`]).
+//! the same scale (`SurfaceRecurrences`, [`SURFACE_REACH`]).
 //!
 //! Patch energy cannot see repetition: a verbatim copy scores zero wherever it is pasted. A
 //! tiled look is the same distinctive vein, knot or blotch at the same offset again and
@@ -258,7 +258,7 @@ fn usage(sample: &Picture, positions: &[(usize, usize)], sources: &[u32]) -> (f6
     (unused, if mean > 0.0 { variance.sqrt() / mean } else { f64::NAN })
 }
 
-/// Where a surface's vertices lie, for [`surface_repetition`]: positions, the tangent frame
+/// Where a surface's vertices lie, for [`SurfaceRecurrences`]: positions, the tangent frame
 /// the synthesis laid the sample along at each, and the texel size in model units.
 pub(crate) struct SurfacePlaces<'a> {
     pub positions: &'a [glam::Vec3],
@@ -279,61 +279,81 @@ pub const SURFACE_REACH: f64 = 1.25;
 /// in the position's frame in texels (a copy is laid along that frame, so a lattice of
 /// copies recurs at one offset there) and counted once per cell of offsets. Offsets reach
 /// [`SURFACE_REACH`] sample sides; pairs whose offset leaves the tangent plane by more than
-/// 30° (across a fold or an ear) are not compared.
-pub(crate) fn surface_repetition(
-    places: &SurfacePlaces,
-    uv: &[[i32; 2]],
-    sample: &Picture,
-    tileable: bool,
-) -> Repetition {
-    let sample_positions = patch_positions(sample, 1, tileable);
-    if sample_positions.is_empty() || uv.is_empty() {
-        return Repetition::NAN;
+/// 30° (across a fold or an ear) are not compared. The positions and the offsets at which
+/// each one's source recurs depend on the coordinates alone: they are found once
+/// ([`SurfaceRecurrences::of`]), then scored against each probe's picture
+/// ([`SurfaceRecurrences::score`]; only the places' weights differ between a BTF's probes).
+pub(crate) struct SurfaceRecurrences {
+    /// Per position, its sample coordinate.
+    uv: Vec<[i32; 2]>,
+    /// Per position, the distinct offset cells (within `reach`) where its source recurs.
+    offsets: Vec<Vec<[i64; 2]>>,
+    /// The longest offset looked at, in cells.
+    reach: i64,
+}
+
+impl SurfaceRecurrences {
+    pub(crate) fn of(places: &SurfacePlaces, uv: &[[i32; 2]], (width, height): (usize, usize)) -> Self {
+        let reach = (SURFACE_REACH * width.max(height) as f64 / STRIDE as f64).ceil() as i64;
+        let buckets = buckets_by_place(uv);
+        let chosen: Vec<usize> = (0..uv.len()).filter(|&i| is_position(i)).collect();
+        let offsets = chosen
+            .iter()
+            .map(|&i| {
+                let mut cells: Vec<[i64; 2]> = recurrence_offsets(places, uv, &buckets, i)
+                    .filter(|d| d[0].abs().max(d[1]) <= reach)
+                    .collect();
+                cells.sort_unstable();
+                cells.dedup();
+                cells
+            })
+            .collect();
+        SurfaceRecurrences { uv: chosen.iter().map(|&i| uv[i]).collect(), offsets, reach }
     }
-    let columns = if tileable { sample.width } else { sample.width + 1 - PATCH_SIDE } as i32;
-    let rows = sample_positions.len() as i32 / columns;
-    // The sample patch centred on a texel (clamped where it would leave a sample that does
-    // not tile).
-    let source = |[u, v]: [i32; 2]| {
-        let (x, y) = (u - PATCH_SIDE as i32 / 2, v - PATCH_SIDE as i32 / 2);
-        let (x, y) = if tileable {
-            (x.rem_euclid(columns), y.rem_euclid(rows))
-        } else {
-            (x.clamp(0, columns - 1), y.clamp(0, rows - 1))
-        };
-        (y * columns + x) as u32
-    };
-    let weight = distinctiveness(sample, &sample_positions, tileable);
-    let chosen: Vec<usize> = (0..uv.len()).filter(|&i| is_position(i)).collect();
-    let reach = (SURFACE_REACH * sample.width.max(sample.height) as f64 / STRIDE as f64).ceil() as i64;
-    let offset_index = |[dx, dy]: [i64; 2]| (dy * (2 * reach + 1) + dx + reach) as usize;
-    let mut recurring = vec![0.0f64; ((reach + 1) * (2 * reach + 1)) as usize];
-    let buckets = buckets_by_place(uv);
-    let mut cells = Vec::new();
-    for &i in &chosen {
-        cells.clear();
-        cells.extend(recurrence_offsets(places, uv, &buckets, i).filter(|d| d[0].abs().max(d[1]) <= reach));
-        cells.sort_unstable();
-        cells.dedup();
-        let w = weight[source(uv[i]) as usize];
-        for &d in &cells {
-            recurring[offset_index(d)] += w;
+
+    /// The repetition measures against `sample` (one probe's picture).
+    pub(crate) fn score(&self, sample: &Picture, tileable: bool) -> Repetition {
+        let sample_positions = patch_positions(sample, 1, tileable);
+        if sample_positions.is_empty() || self.uv.is_empty() {
+            return Repetition::NAN;
         }
+        let columns = if tileable { sample.width } else { sample.width + 1 - PATCH_SIDE } as i32;
+        let rows = sample_positions.len() as i32 / columns;
+        // The sample patch centred on a texel (clamped where it would leave a sample that
+        // does not tile).
+        let source = |[u, v]: [i32; 2]| {
+            let (x, y) = (u - PATCH_SIDE as i32 / 2, v - PATCH_SIDE as i32 / 2);
+            let (x, y) = if tileable {
+                (x.rem_euclid(columns), y.rem_euclid(rows))
+            } else {
+                (x.clamp(0, columns - 1), y.clamp(0, rows - 1))
+            };
+            (y * columns + x) as u32
+        };
+        let weight = distinctiveness(sample, &sample_positions, tileable);
+        let reach = self.reach;
+        let offset_index = |[dx, dy]: [i64; 2]| (dy * (2 * reach + 1) + dx + reach) as usize;
+        let mut recurring = vec![0.0f64; ((reach + 1) * (2 * reach + 1)) as usize];
+        let sources: Vec<u32> = self.uv.iter().map(|&at| source(at)).collect();
+        for (cells, &s) in self.offsets.iter().zip(&sources) {
+            for &d in cells {
+                recurring[offset_index(d)] += weight[s as usize];
+            }
+        }
+        let total = self.uv.len() as f64;
+        let shares = (0..=reach)
+            .flat_map(|dy| (-reach..=reach).map(move |dx| [dx, dy]))
+            .filter(|&d| far_enough(d) && (d[0] * d[0] + d[1] * d[1]) as f64 <= (reach * reach) as f64)
+            .map(|d| (recurring[offset_index(d)] / total, d))
+            .collect();
+        let (repetition, repeat_offset) = strongest(shares);
+        let (unused, use_spread) = usage(sample, &sample_positions, &sources);
+        Repetition { repetition, repeat_offset, unused, use_spread }
     }
-    let total = chosen.len().max(1) as f64;
-    let shares = (0..=reach)
-        .flat_map(|dy| (-reach..=reach).map(move |dx| [dx, dy]))
-        .filter(|&d| far_enough(d) && (d[0] * d[0] + d[1] * d[1]) as f64 <= (reach * reach) as f64)
-        .map(|d| (recurring[offset_index(d)] / total, d))
-        .collect();
-    let (repetition, repeat_offset) = strongest(shares);
-    let sources: Vec<u32> = chosen.iter().map(|&i| source(uv[i])).collect();
-    let (unused, use_spread) = usage(sample, &sample_positions, &sources);
-    Repetition { repetition, repeat_offset, unused, use_spread }
 }
 
 /// A texture-mapped mesh (pattern mapping's corner coordinates, texels) as points for
-/// [`surface_repetition`]: about one per texel on every face, each with the face's sample
+/// [`SurfaceRecurrences`]: about one per texel on every face, each with the face's sample
 /// coordinate there and a frame along the face's own texture axes (where its `u` and `v`
 /// grow), so that a copy's offsets are measured along the copy as on a surface map.
 pub(crate) fn texture_mapped_points(
@@ -476,7 +496,7 @@ mod tests {
     ) -> f64 {
         let uv: Vec<[i32; 2]> = places.iter().map(|p| uv(p.map(|c| c.round() as i32))).collect();
         let on = SurfacePlaces { positions: &mesh.0, frames: &mesh.1, texel: 1.0 };
-        surface_repetition(&on, &uv, sample, false).repetition
+        SurfaceRecurrences::of(&on, &uv, (sample.width, sample.height)).score(sample, false).repetition
     }
 
     /// A texture-mapped mesh is scored along its faces' own texture axes: a flat grid of
@@ -512,7 +532,7 @@ mod tests {
             }
             let (points, frames, uv) = texture_mapped_points(&positions, &triangles, &corner_uv, 1.0);
             let on = SurfacePlaces { positions: &points, frames: &frames, texel: 1.0 };
-            surface_repetition(&on, &uv, &sample, false).repetition
+            SurfaceRecurrences::of(&on, &uv, (sample.width, sample.height)).score(&sample, false).repetition
         };
         let on_lattice = score(&mut |i, j| places[(j % 2) * 2 + i % 2]);
         let mut rng = ChaCha8Rng::seed_from_u64(4);

@@ -6,7 +6,7 @@ use super::picture::{
     colour_chi2, contrast, nearest_patch_energy, wrap_seam_energy, Picture, PATCH_SIDE, PATCH_STRIDE,
 };
 use super::quality::{picture_quality, PictureQuality};
-use super::repetition::{surface_repetition, texture_mapped_points, SurfacePlaces};
+use super::repetition::{texture_mapped_points, SurfacePlaces, SurfaceRecurrences};
 use super::surface::{model_figures, TextureFigures};
 use super::texton::{chi2, energy, TextonQuality};
 use crate::analysis::images::{Probe, SampleImages};
@@ -104,6 +104,7 @@ pub fn evaluate_surface(
     let images = SampleImages::open(analysis_dir)?;
     let (sample, tileable) = texton_level(analysis_dir, &map.state, name)?;
     let places = SurfacePlaces { positions: map.mesh.positions(), frames: &map.frames, texel: map.texel };
+    let recurrences = SurfaceRecurrences::of(&places, &map.state.uv, (images.width, images.height));
     let probes = images
         .default_probes()
         .into_iter()
@@ -115,7 +116,7 @@ pub fn evaluate_surface(
                 patch_energy_coarse: f64::NAN,
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
-                repetition: surface_repetition(&places, &map.state.uv, &picture, tileable),
+                repetition: recurrences.score(&picture, tileable),
             };
             ProbeQuality { probe, quality, wrap_seam_energy: None }
         })
@@ -156,6 +157,8 @@ pub fn evaluate_uv_map(
     }
     let (mesh, scale) = (&map.mesh, 1.0 / map.texel);
     let points = texture_mapped_points(&mesh.positions, &mesh.triangles, &map.corner_uv, map.texel);
+    let on = SurfacePlaces { positions: &points.0, frames: &points.1, texel: map.texel };
+    let recurrences = SurfaceRecurrences::of(&on, &points.2, map.sample);
     let mut seams = None;
     let probes = images
         .default_probes()
@@ -178,13 +181,12 @@ pub fn evaluate_uv_map(
                 (weighted(q.border, q.border_windows) + weighted(q.interior, q.interior_windows)) / windows;
             let colours = surface_colours(&map.corner_uv, &picture, map.tileable);
             seams.get_or_insert(q);
-            let on = SurfacePlaces { positions: &points.0, frames: &points.1, texel: map.texel };
             let quality = PictureQuality {
                 patch_energy,
                 patch_energy_coarse: f64::NAN,
                 colour_chi2: colour_chi2(&colours, &picture),
                 contrast: contrast(&colours, &picture),
-                repetition: surface_repetition(&on, &points.2, &picture, map.tileable),
+                repetition: recurrences.score(&picture, map.tileable),
             };
             Ok(ProbeQuality { probe, quality, wrap_seam_energy: None })
         })
