@@ -5,8 +5,9 @@
 //! per texel ([`Scene::point_uv`]: the corners' predictions interpolated where they show one
 //! copy of the sample, the heavier side taken whole at a seam), and one lookup there through
 //! the shared shading core ([`Material::shade`]), so the texture is as crisp as the sample
-//! and a seam is a cut, never a blend of two copies. The *coordinate map* holds that same
-//! coordinate.
+//! and a seam is a cut, never a blend of two copies: only its edge is spread over one
+//! sample texel, as the sample's own edges are where the atlas magnifies it. The
+//! *coordinate map* holds the coordinate.
 //!
 //! **Normal maps** are re-oriented by the corners' frames: the sample's tangent-space normal
 //! (x along the sample's s, y along t = image up, z along n) is turned into a world
@@ -179,15 +180,20 @@ fn bake_texel(
 ) {
     let corners = target.atlas.triangles[triangle];
     let look = |bary: Vec3, hint: &mut u32| surface_point(target, source, corners, bary, hint);
-    let SurfacePoint { uv, chosen, dense, point } = look(bary, hint);
+    let SurfacePoint { uv, chosen, dense } = look(bary, hint);
     let scene = source.scene;
     let mut colour = source.material.shade(&source.blend, uv.x, uv.y);
-    if scene.cuts_copies(source.material, dense.map(|v| v as u32), point) {
-        // A seam may cross the texel: its cut on the atlas' grid would be a staircase of
-        // texels, which a close view magnifies into teeth. Each side's share of the texel
-        // makes it an edge; a place on the centre's side counts as the centre, so that a
-        // texel wholly on one side is not blurred.
+    let belonging = scene.belonging(source.material);
+    if dense.iter().any(|&v| belonging[v] < 1.0) {
+        // A seam may pass within a sample texel of the texel (a corner has a neighbour
+        // of another copy). Its cut on the atlas' grid would be a staircase of texels,
+        // which a close view magnifies into teeth, and where the atlas magnifies the
+        // sample, a step sharper than any edge of the sample. Each side's share of a
+        // footprint of one atlas texel, or one sample texel where that is larger, makes it
+        // an edge as soft as the sample's own; a place on the centre's side counts as the
+        // centre, so that no copy is blurred inside.
         if let Some(steps) = texel_steps(target, corners, atlas_size) {
+            let steps = seam_footprint(target, corners, steps, scene.texel);
             let centre = colour;
             let mut sum = Vec3::ZERO;
             for [dx, dy] in SEAM_SAMPLES {
@@ -224,7 +230,21 @@ fn bake_texel(
     }
 }
 
-/// Where in a texel a seam's texels are looked up (a rotated grid, in texels from its centre).
+/// `steps` (one atlas texel along each axis) widened to one sample texel (`texel` model
+/// units) where the atlas magnifies the sample: a seam is then as soft as an edge of the
+/// sample itself, which a bilinear lookup spreads over one sample texel.
+fn seam_footprint(target: &Target, corners: [u32; 3], steps: [Vec3; 2], texel: f32) -> [Vec3; 2] {
+    let position = |k: usize| target.mesh.positions[target.atlas.source_vertex[corners[k] as usize] as usize];
+    let at = |b: Vec3| position(0) * b.x + position(1) * b.y + position(2) * b.z;
+    // Steps sum to no weight, so they map to displacements.
+    let length = |b: Vec3| at(b).length();
+    let atlas_texel = (length(steps[0]) * length(steps[1])).sqrt();
+    let widen = if atlas_texel > 0.0 { (texel / atlas_texel).max(1.0) } else { 1.0 };
+    steps.map(|s| s * widen)
+}
+
+/// Where in a seam's footprint it is looked up (a rotated grid, in footprints from its
+/// centre).
 const SEAM_SAMPLES: [[f32; 2]; 4] = [[-0.125, -0.375], [0.375, -0.125], [0.125, 0.375], [-0.375, 0.125]];
 
 /// What the synthesized surface shows at a point of the user's mesh.
@@ -235,8 +255,6 @@ struct SurfacePoint {
     chosen: [f32; 3],
     /// The dense triangle's corners.
     dense: [usize; 3],
-    /// The nearest point on the dense surface.
-    point: Vec3,
 }
 
 /// What the synthesized surface shows at point `bary` of atlas triangle `corners` (`hint`:
@@ -257,7 +275,7 @@ fn surface_point(
     let [a, b, c] = dense.map(|v| scene.mesh.positions()[v]);
     let weights = barycentric(nearest.point, a, b, c);
     let (uv, chosen) = scene.point_uv(source.material, dense.map(|v| v as u32), weights, nearest.point);
-    SurfacePoint { uv, chosen, dense, point: nearest.point }
+    SurfacePoint { uv, chosen, dense }
 }
 
 /// The change in barycentric weights on atlas triangle `corners` for one texel along the

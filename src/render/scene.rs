@@ -234,14 +234,6 @@ impl Scene {
         })
     }
 
-    /// Whether the corners of triangle `corners` predict point `p` in more than one copy of
-    /// the sample: whether a seam between copies crosses the triangle near `p`.
-    pub fn cuts_copies(&self, material: &Material, corners: [u32; 3], p: Vec3) -> bool {
-        let q = corners.map(|v| self.predict_uv(v as usize, p));
-        let apart = |a: Vec2, b: Vec2| !one_copy(material, a, b);
-        !self.mapped && (apart(q[0], q[1]) || apart(q[0], q[2]) || apart(q[1], q[2]))
-    }
-
     /// The colour of point `p` with barycentric weights `bary` in triangle `tri`, before
     /// shadowing (see [`Mode`]).
     pub fn shade_point(

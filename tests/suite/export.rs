@@ -209,6 +209,56 @@ fn an_identity_surface_map_bakes_the_sample_itself() {
     );
 }
 
+/// A seam baked into an atlas that magnifies the sample is as soft as an edge of the sample
+/// itself (a bilinear lookup spreads one over a sample texel), not a cut one atlas texel
+/// sharp: two copies of a sample whose top half is dark and bottom half bright, the right
+/// one shifted by half the sample, meet down the quad's middle, where the sample has no
+/// edge. Baked at one atlas texel per sample texel the step takes at most one texel; at
+/// four, its ramp spans about a sample texel (2–4 atlas texels), not a blend of the two
+/// copies over a wider band.
+#[test]
+fn a_seam_is_as_soft_as_the_sample_s_own_edges_at_any_atlas_scale() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let sample = dir.path().join("sample.png");
+    let (dark, bright) = (40u8, 220u8);
+    write_png(&sample, N, N, |_, y| [if y < N / 2 { dark } else { bright }; 3]);
+    let analysis = analyse(dir.path(), &sample, &[]);
+    let quad = dir.path().join("quad.obj");
+    write_quad_obj(&quad);
+    let surface = dir.path().join("surface.ply");
+    write_surface(
+        &surface,
+        &analysis,
+        &quad,
+        Vec3::X,
+        |i, j| if i < N / 2 { [i, j] } else { [i, (j + N / 2) % N] },
+    );
+    // Per atlas row away from the sample's own edges (rows N/2 − ½ and N − ½ of either
+    // copy), the texels strictly between the two tones; the fewest and the most.
+    let ramps = |scale: u32| {
+        let out = dir.path().join(format!("quad{scale}.glb"));
+        run(&["-q", "export", s(&surface), "-o", s(&out), "--size", &(N * scale).to_string()]);
+        let baked = Gltf::read(&out).image("baseColor").to_luma8();
+        let (lo, hi) =
+            (dark as f32 + 0.1 * (bright - dark) as f32, bright as f32 - 0.1 * (bright - dark) as f32);
+        let quarter = (N / 4) as f32;
+        let rows = (0..N * scale).filter(|&y| {
+            let row = (y as f32 + 0.5) / scale as f32 - 0.5;
+            (row - quarter).abs() <= 2.5 || (row - 3.0 * quarter).abs() <= 2.5
+        });
+        let counts: Vec<usize> = rows
+            .map(|y| {
+                (0..N * scale).filter(|&x| (lo..hi).contains(&(baked.get_pixel(x, y).0[0] as f32))).count()
+            })
+            .collect();
+        (*counts.iter().min().unwrap(), *counts.iter().max().unwrap())
+    };
+    let (_, most) = ramps(1);
+    assert!(most <= 1, "at one atlas texel per sample texel the seam spans {most} texels");
+    let (fewest, most) = ramps(4);
+    assert!(fewest >= 2 && most <= 5, "at four atlas texels per sample texel the seam spans {fewest}–{most}");
+}
+
 #[test]
 fn a_btf_stack_bakes_its_frontal_image_and_the_sample_coordinates() {
     let dir = tempfile::tempdir().expect("temp dir");
