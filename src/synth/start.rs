@@ -89,7 +89,7 @@ pub(crate) fn patch_state<M: Metric>(
     let mut uses = Uses::new(sample, margin, level.vertices);
     for patch in seam_order(&graph, &owner, seeds.len()) {
         let seam = seam_pairs(&graph, &members[patch], &owner, &places, &uv, sample, margin);
-        let footprint = Footprint::of(&members[patch], &position);
+        let footprint = Footprint::of(&members[patch], &position, border_axes(level, &members[patch]));
         let continued = continuations(&seam, &position);
         let mut apart_from = continued.clone();
         let mut candidates = match layout.lattice {
@@ -341,20 +341,26 @@ fn wrap_unlikeness<M: Metric>(sample: &SampleLevel, metric: &M, margin: usize, a
 struct Footprint {
     low: [i64; 2],
     high: [i64; 2],
+    /// Per axis, whether the patch reaches the edge of a plane's output there.
+    clipped: [bool; 2],
 }
 
 impl Footprint {
-    fn of(members: &[u32], position: &[[f32; 2]]) -> Self {
+    fn of(members: &[u32], position: &[[f32; 2]], clipped: [bool; 2]) -> Self {
         let offsets = || members.iter().map(|&v| position[v as usize].map(|p| p.round() as i64));
         let extreme = |pick: fn(i64, i64) -> i64, start: i64| {
             [0, 1].map(|axis| offsets().map(|o| o[axis]).fold(start, pick))
         };
-        Footprint { low: extreme(i64::min, i64::MAX), high: extreme(i64::max, i64::MIN) }
+        Footprint { low: extreme(i64::min, i64::MAX), high: extreme(i64::max, i64::MIN), clipped }
     }
 
-    /// Moves a place the least along each axis of `own_edges` so that the patch's copy
-    /// lies inside the sample's candidate band, where it fits; elsewhere the copy wraps.
-    /// Moving rather than refusing keeps the texels near the edges in use.
+    /// Moves a place along each axis of `own_edges` so that the patch's copy lies inside
+    /// the sample's candidate band, where it fits; elsewhere the copy wraps. Moving rather
+    /// than refusing keeps the texels near the edges in use: the least move, which puts the
+    /// copy's side on the sample's edge. Except where the patch is cut by the output's
+    /// edge: that side is no edge of the patch, and the least move would lay the sample's
+    /// edge along the output's (a pine board's dark edge down the whole of a plane's side),
+    /// so such a place wraps around the places that fit instead.
     fn inside(
         &self,
         sample: &SampleLevel,
@@ -367,16 +373,34 @@ impl Footprint {
             let (first, last) = (lo - self.low[axis], hi - self.high[axis]);
             (own_edges[axis] && first <= last).then_some((first, last))
         });
+        let clipped = self.clipped;
         move |place: [i64; 2]| {
             let mut moved = place;
             for axis in 0..2 {
                 if let Some((first, last)) = range[axis] {
-                    moved[axis] = place[axis].clamp(first, last);
+                    moved[axis] = if clipped[axis] {
+                        first + (place[axis] - first).rem_euclid(last - first + 1)
+                    } else {
+                        place[axis].clamp(first, last)
+                    };
                 }
             }
             moved
         }
     }
+}
+
+/// Per axis, whether any of a plane's `members` lies on the output's edge there (never on
+/// a mesh).
+fn border_axes(level: &TargetLevel, members: &[u32]) -> [bool; 2] {
+    let Neighbourhoods::Grid { width, height, wraps: false, .. } = level.neighbourhoods else {
+        return [false; 2];
+    };
+    let on_edge = |v: u32, axis: usize| {
+        let (at, side) = if axis == 0 { (v as usize % width, width) } else { (v as usize / width, height) };
+        at == 0 || at + 1 == side
+    };
+    [0, 1].map(|axis| members.iter().any(|&v| on_edge(v, axis)))
 }
 
 /// Per vertex of `level` whose patch is `owner` (from [`patch_state`], inherited down the
@@ -1018,6 +1042,28 @@ mod tests {
         };
         assert_eq!(wrapped_steps([true, false]), 0);
         assert!(wrapped_steps([false, false]) > 0);
+    }
+
+    /// A patch whose copy would wrap across the sample's own edge is moved the least, onto
+    /// the edge; one the output's edge cuts wraps around the places that fit instead, so
+    /// that no place (and no sample column along the output's side) gets all of them.
+    #[test]
+    fn a_patch_cut_by_the_output_s_edge_is_not_pinned_to_the_sample_s_edge() {
+        let sample = sample_with_side_edges();
+        let footprint = |clipped| Footprint { low: [-2, -2], high: [3, 2], clipped };
+        // The band is columns 1–14, so places 3–11 keep the copy inside.
+        let moved = |clipped| {
+            let inside = footprint(clipped).inside(&sample, 1, [true, false]);
+            (-8..24).map(|x| inside([x, 5])).collect::<Vec<_>>()
+        };
+        let count = |places: &[[i64; 2]], x: i64| places.iter().filter(|p| p[0] == x).count();
+        let least = moved([false, false]);
+        assert!(least.iter().all(|p| (3..=11).contains(&p[0]) && p[1] == 5), "{least:?}");
+        // The 23 places outside, and 3 and 11 themselves.
+        assert_eq!(count(&least, 3) + count(&least, 11), 25, "every place outside goes to an end");
+        let wrapped = moved([true, false]);
+        assert!(wrapped.iter().all(|p| (3..=11).contains(&p[0]) && p[1] == 5), "{wrapped:?}");
+        assert!((3..=11).all(|x| (3..=4).contains(&count(&wrapped, x))), "{wrapped:?}");
     }
 
     /// A move costs more only deeper inside a patch than the depth (in radii of the 5×5

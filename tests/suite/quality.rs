@@ -214,6 +214,36 @@ fn the_default_does_not_join_a_board_s_two_edges() {
     }
 }
 
+/// Nor does a plane lay the board's edges along its own sides. A patch cut by the output's
+/// edge was moved into the sample the least way, which put its cut side, the output's edge,
+/// on the sample's edge; its neighbours along the side then continued the board's bright
+/// or dark edge down most of it (a light line down the result's right side). Over seeds
+/// 0–7 (256×224), the outermost output columns copied the two outermost candidate columns
+/// on the same side in 37% of their rows on average, five of the sixteen sides in over
+/// half; since such patches wrap around the places that fit, 20%, one side (a plain grain
+/// line down it). The bound lies between.
+#[test]
+fn a_plane_s_sides_do_not_copy_the_board_s_edges() {
+    let test = "a_plane_s_sides_do_not_copy_the_board_s_edges";
+    let Some(path) = btfsynth::testdata::shared_data(test, "textures/gimp-Wood_pine.png") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let analysis = analyse(&path, "0,0,64,56", &dir.path().join("pine"), &[]);
+    let mut shares = Vec::new();
+    for seed in 0..8 {
+        let seed = seed.to_string();
+        let out = plane(&analysis, "256x224", &dir.path().join(&seed), &["--seed", &seed]);
+        let (w, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let rows = || state.uv.chunks_exact(w);
+        let share = |on_edge: &dyn Fn(&[[i32; 2]]) -> bool| {
+            rows().filter(|row| on_edge(row)).count() as f64 / rows().count() as f64
+        };
+        shares.push(share(&|row| row[0][0] <= 2));
+        shares.push(share(&|row| row[w - 1][0] >= 64 - 3));
+    }
+    let mean = shares.iter().sum::<f64>() / shares.len() as f64;
+    assert!(mean < 0.3, "the plane's sides copy the board's edges in {mean} of their rows: {shares:?}");
+}
+
 /// A 50² sample's elements, larger than the template, come out whole rather than cut into
 /// fragments: the chocolate swirl's (25-texel swirls) patch energy (`eval`: how far the
 /// result's 7×7 patches are from the sample's nearest), 200² outputs, seeds 0–1. Started on
