@@ -299,7 +299,11 @@ fn one_line(e: &anyhow::Error) -> String {
 
 fn init_logging(verbose: u8) {
     let default = match verbose {
-        0 => "warn",
+        // wgpu's backend layer reports its drivers' probing at error level when built with
+        // debug assertions (an EGL display whose DRI driver does not load, while another
+        // adapter is found and used): noise before the one line a failure gets. `-v` and
+        // RUST_LOG show it.
+        0 => "warn,wgpu_hal=off",
         1 => "info",
         _ => "debug",
     };
