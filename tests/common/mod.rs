@@ -9,12 +9,13 @@ pub fn btfsynth(args: &[&str]) -> Output {
     btfsynth_in(Path::new("."), args)
 }
 
-/// Runs the built `btfsynth` binary with `args` in the working directory `dir`.
+/// Runs the built `btfsynth` binary with `args` in the working directory `dir`, under the
+/// log filter a user gets by default (not the developer's `RUST_LOG`).
 pub fn btfsynth_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_btfsynth"))
         .args(args)
         .current_dir(dir)
-        .env("RUST_LOG", "warn")
+        .env_remove("RUST_LOG")
         .output()
         .expect("the btfsynth binary runs")
 }

@@ -25,7 +25,7 @@ const ABSENT_BACKEND: &str = if cfg!(target_os = "macos") { "dx12" } else { "met
 /// `btfsynth args` with `WGPU_BACKEND` set to `backend`, if given.
 fn btfsynth_with(backend: Option<&str>, args: &[&str]) -> Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_btfsynth"));
-    command.args(args).env("RUST_LOG", "warn");
+    command.args(args).env_remove("RUST_LOG");
     if let Some(b) = backend {
         command.env("WGPU_BACKEND", b);
     }

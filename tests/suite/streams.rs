@@ -22,7 +22,7 @@ fn closed_pipe() -> OwnedFd {
 fn run_with_stdout(args: &[&str], stdout: Stdio) -> Output {
     Command::new(env!("CARGO_BIN_EXE_btfsynth"))
         .args(args)
-        .env("RUST_LOG", "warn")
+        .env_remove("RUST_LOG")
         .stdout(stdout)
         .stderr(Stdio::piped())
         .output()
