@@ -188,6 +188,20 @@ fn assert_default_repetition(test: &str, crops: &[(&str, u32, f64)]) {
     }
 }
 
+/// The analysis of the shared pine board (64×56) in `dir`, or `None` (after one line saying
+/// why) without ../shared.
+fn pine_analysis(test: &str, dir: &Path) -> Option<PathBuf> {
+    let path = btfsynth::testdata::shared_data(test, "textures/gimp-Wood_pine.png")?;
+    Some(analyse(&path, "0,0,64,56", &dir.join("pine"), &[]))
+}
+
+/// The default's plane of `size` from `analysis` at `seed` (in `dir`): its width and state.
+fn plane_state(analysis: &Path, size: &str, dir: &Path, seed: &str) -> (usize, btfsynth::synth::State) {
+    let out = plane(analysis, size, &dir.join(seed), &["--seed", seed]);
+    let (w, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+    (w, state)
+}
+
 /// A pine board (../shared) is dark along its left side and light along its right: where
 /// a patch's copy wrapped across the sample, the two edges met inside it as a bar (3–4 per
 /// result). Horizontally adjacent output texels that copy the outermost three columns of
@@ -196,13 +210,12 @@ fn assert_default_repetition(test: &str, crops: &[(&str, u32, f64)]) {
 /// fewest before.
 #[test]
 fn the_default_does_not_join_a_board_s_two_edges() {
-    let test = "the_default_does_not_join_a_board_s_two_edges";
-    let Some(path) = btfsynth::testdata::shared_data(test, "textures/gimp-Wood_pine.png") else { return };
     let dir = tempfile::tempdir().unwrap();
-    let analysis = analyse(&path, "0,0,64,56", &dir.path().join("pine"), &[]);
+    let Some(analysis) = pine_analysis("the_default_does_not_join_a_board_s_two_edges", dir.path()) else {
+        return;
+    };
     for seed in ["0", "1"] {
-        let out = plane(&analysis, "224x224", &dir.path().join(seed), &["--seed", seed]);
-        let (w, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let (w, state) = plane_state(&analysis, "224x224", dir.path(), seed);
         let (left, right) = (|x: i32| x <= 2, |x: i32| x >= 64 - 3);
         let pairs = state.uv.chunks_exact(w).flat_map(|row| row.windows(2));
         let (joined, all) = pairs.fold((0usize, 0usize), |(joined, all), pair| {
@@ -224,15 +237,13 @@ fn the_default_does_not_join_a_board_s_two_edges() {
 /// line down it). The bound lies between.
 #[test]
 fn a_plane_s_sides_do_not_copy_the_board_s_edges() {
-    let test = "a_plane_s_sides_do_not_copy_the_board_s_edges";
-    let Some(path) = btfsynth::testdata::shared_data(test, "textures/gimp-Wood_pine.png") else { return };
     let dir = tempfile::tempdir().unwrap();
-    let analysis = analyse(&path, "0,0,64,56", &dir.path().join("pine"), &[]);
+    let Some(analysis) = pine_analysis("a_plane_s_sides_do_not_copy_the_board_s_edges", dir.path()) else {
+        return;
+    };
     let mut shares = Vec::new();
     for seed in 0..8 {
-        let seed = seed.to_string();
-        let out = plane(&analysis, "256x224", &dir.path().join(&seed), &["--seed", &seed]);
-        let (w, _, state, _) = btfsynth::synth::plane::read_plane(&out).unwrap();
+        let (w, state) = plane_state(&analysis, "256x224", dir.path(), &seed.to_string());
         let rows = || state.uv.chunks_exact(w);
         let share = |on_edge: &dyn Fn(&[[i32; 2]]) -> bool| {
             rows().filter(|row| on_edge(row)).count() as f64 / rows().count() as f64
